@@ -1,0 +1,21 @@
+"""Exceptions raised by fatigue_pin. Every message names the bad value and what was expected."""
+
+
+class FatiguePinError(Exception):
+    """Base class of all fatigue_pin errors."""
+
+
+class ModelError(FatiguePinError, ValueError):
+    """A URDF or model that fatigue_pin cannot use (missing file, parse error, floating base, ...)."""
+
+
+class ParameterError(FatiguePinError, ValueError):
+    """A parameter set with a bad field (negative rate, non-finite value, unstable stabiliser, ...)."""
+
+
+class DimensionError(FatiguePinError, ValueError):
+    """A state, control or parameter vector of the wrong size."""
+
+
+class TaskError(FatiguePinError, ValueError):
+    """A task that cannot be posed on the model (unknown joint, target outside the joint range, ...)."""

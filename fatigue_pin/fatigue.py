@@ -1,0 +1,392 @@
+"""Xia's three-compartment fatigue model with an invariant stabiliser (3CC / 3CC-S / 3CC-r).
+
+This module is the one place where the fatigue equations are written. Per actuator, the states are
+the active, resting and fatigued fractions ``m = (ma, mr, mf)`` of the actuator's capacity
+(dimensionless, each in [0, 1]) and the control is the target load ``TL`` in [0, 1]:
+
+    C(ma, mr, TL) = LD * (TL - ma)   if ma <  TL and mr >= TL - ma
+                  = LD * mr          if ma <  TL and mr <  TL - ma
+                  = LR * (TL - ma)   if ma >= TL
+    dma/dt = C - F * ma
+    dmr/dt = -C + R' * mf
+    dmf/dt = F * ma - R' * mf + S * (1 - ma - mr - mf)
+
+with ``R' = r * R`` while ``ma >= TL`` and ``R' = R`` otherwise (``r = 1`` is Xia's model; ``r != 1``
+is Looft's rest-recovery variant 3CC-r). ``S = 0`` is Xia's 3CC; ``S > 0`` is the stabilised 3CC-S.
+The exact model satisfies ``d(ma + mr + mf)/dt = S * (1 - ma - mr - mf)``, so an error in the sum
+decays like ``exp(-S t)``; the rest multiplier is applied to both ``dmr`` and ``dmf`` so that 3CC-r
+keeps this property (the paper writes ``r`` in ``dmr`` only, which would break the invariant for
+``r != 1``).
+
+The right-hand side exists once, as the SX ``casadi.Function`` returned by :func:`fatigue_rhs`
+(exact branches with ``casadi.if_else``, no smoothing). The numeric helpers (:func:`rhs_numeric`,
+:func:`simulate`) evaluate that same function.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from numbers import Real
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from fatigue_pin.errors import DimensionError, ParameterError
+
+__all__ = [
+    "STATE_NAMES",
+    "PARAM_NAMES",
+    "PARAM_UNITS",
+    "STABILITY_LIMITS",
+    "FatigueParams",
+    "FatigueTrajectory",
+    "check_stabiliser",
+    "fatigue_rhs",
+    "rhs_numeric",
+    "simulate",
+    "invariant_error",
+]
+
+#: Names of the three fatigue states of one actuator, in state-vector order.
+STATE_NAMES: tuple[str, str, str] = ("ma", "mr", "mf")
+#: Names of the entries of the parameter vector ``p`` of :func:`fatigue_rhs`, in order.
+PARAM_NAMES: tuple[str, ...] = ("LD", "LR", "F", "R", "S", "r")
+#: Units of the entries of ``p`` (``r`` is a dimensionless multiplier).
+PARAM_UNITS: tuple[str, ...] = ("1/s", "1/s", "1/s", "1/s", "1/s", "1")
+
+#: Stability interval of explicit one-step methods on the negative real axis: the method damps
+#: ``y' = -S y`` iff ``0 <= S * dt < limit``. RK4's limit is the real root of
+#: ``|1 - x + x^2/2 - x^3/6 + x^4/24| = 1``; adaptive methods (``None``) choose their own steps.
+STABILITY_LIMITS: dict[str, float | None] = {
+    "euler": 2.0,
+    "rk2": 2.0,
+    "rk3": 2.5127453266183286,
+    "rk4": 2.785293563405282,
+    "rk45": None,
+    "rk23": None,
+    "dop853": None,
+    "radau": None,
+    "bdf": None,
+    "lsoda": None,
+}
+
+# Stability polynomials R(z) of the fixed-step methods (amplification of y' = lambda y per step).
+_STABILITY_POLYNOMIALS: dict[str, tuple[float, ...]] = {
+    "euler": (1.0, 1.0),
+    "rk2": (1.0, 1.0, 1.0 / 2.0),
+    "rk3": (1.0, 1.0, 1.0 / 2.0, 1.0 / 6.0),
+    "rk4": (1.0, 1.0, 1.0 / 2.0, 1.0 / 6.0, 1.0 / 24.0),
+}
+
+
+def _check_rate(owner: str, name: str, value: object, unit: str) -> float:
+    """Return ``value`` as a float, or raise ParameterError if it is not a finite number >= 0."""
+    what = "a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite multiplier >= 0 (dimensionless)"
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise ParameterError(f"{owner}.{name} = {value!r}: expected {what}")
+    x = float(value)
+    if not math.isfinite(x) or x < 0.0:
+        raise ParameterError(f"{owner}.{name} = {x!r}: expected {what}")
+    return x
+
+
+@dataclass(frozen=True)
+class FatigueParams:
+    """Parameters of one 3CC / 3CC-S / 3CC-r fatigue model.
+
+    Attributes:
+        LD: development factor of the controller C (1/s).
+        LR: relaxation factor of the controller C (1/s).
+        F: fatigue rate (1/s).
+        R: recovery rate (1/s).
+        S: invariant stabiliser (1/s); 0 gives Xia's original model.
+        r: rest-recovery multiplier of the 3CC-r variant (dimensionless); ``R`` is multiplied by
+            ``r`` while ``ma >= TL``. 1 gives Xia's model.
+
+    All fields must be finite and >= 0 (``LD = 0`` or ``LR = 0`` is accepted: a degenerate but
+    well-defined controller that never develops or never relaxes).
+    """
+
+    LD: float
+    LR: float
+    F: float
+    R: float
+    S: float = 0.0
+    r: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name, unit in zip(PARAM_NAMES, PARAM_UNITS):
+            object.__setattr__(self, name, _check_rate("FatigueParams", name, getattr(self, name), unit))
+
+    # -- presets -------------------------------------------------------------------------------
+
+    @classmethod
+    def elbow(cls, S: float = 0.0) -> FatigueParams:
+        """Elbow values of Looft et al. (2018) used in the forward studies (paper section 2).
+
+        LD = LR = 10, F = 0.00912, R = 0.00094 (1/s), stabiliser ``S`` (1/s), no rest multiplier.
+        """
+        return cls(LD=10.0, LR=10.0, F=0.00912, R=0.00094, S=S)
+
+    @classmethod
+    def ocp(cls, variant: Literal["authors-code", "paper"] = "authors-code", S: float = 10.0) -> FatigueParams:
+        """Values of the optimal control problems (paper section 3, SPEC section 4).
+
+        LD = LR = 10, F = 0.456, S = 10 (1/s). ``R`` depends on the source: ``"paper"`` (the text)
+        gives 0.00094, ``"authors-code"`` (the code that produced the published results) 0.0094.
+        """
+        if variant == "paper":
+            R = 0.00094
+        elif variant == "authors-code":
+            R = 0.0094
+        else:
+            raise ParameterError(f"FatigueParams.ocp variant = {variant!r}: expected 'paper' or 'authors-code'")
+        return cls(LD=10.0, LR=10.0, F=0.456, R=R, S=S)
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def with_(self, **changes: float) -> FatigueParams:
+        """A copy with some fields changed (validated again), e.g. ``params.with_(S=0)``."""
+        unknown = sorted(set(changes) - set(PARAM_NAMES))
+        if unknown:
+            raise ParameterError(f"FatigueParams.with_: unknown field(s) {unknown}; expected some of {list(PARAM_NAMES)}")
+        return dataclasses.replace(self, **changes)
+
+    def as_vector(self) -> np.ndarray:
+        """The parameter vector ``p = [LD, LR, F, R, S, r]`` of :func:`fatigue_rhs`, shape (6,)."""
+        return np.array([getattr(self, name) for name in PARAM_NAMES], dtype=float)
+
+    def as_dict(self) -> dict[str, float]:
+        """The fields as a plain dict (for HDF5 attributes and logs)."""
+        return {name: getattr(self, name) for name in PARAM_NAMES}
+
+
+def check_stabiliser(params: FatigueParams | float, dt: float, method: str = "rk4") -> float | None:
+    """Check that an explicit integrator with step ``dt`` damps the error of the sum of states.
+
+    The exact model gives ``e' = -S e`` for ``e = 1 - (ma + mr + mf)``, a linear invariant every
+    Runge-Kutta method reproduces exactly: after one step ``e <- R(-S dt) e`` with ``R`` the
+    method's stability polynomial. The stabiliser only helps if ``|R(-S dt)| < 1``, i.e. if
+    ``S * dt`` lies inside the method's stability interval on the real axis (see
+    :data:`STABILITY_LIMITS`: RK4 < 2.785, explicit Euler < 2).
+
+    Args:
+        params: the fatigue parameters, or the stabiliser ``S`` itself (1/s).
+        dt: the integrator step (s), e.g. the RK4 substep ``0.02 / 5`` of the OCPs.
+        method: ``"euler"``, ``"rk2"``, ``"rk3"``, ``"rk4"``; adaptive methods (``"rk45"``,
+            ``"rk23"``, ``"dop853"``, ``"radau"``, ``"bdf"``, ``"lsoda"``) choose their own steps and
+            are not checked.
+
+    Returns:
+        The amplification factor ``R(-S dt)`` of the sum error per step (dimensionless), or
+        ``None`` for adaptive methods.
+
+    Raises:
+        ParameterError: ``dt`` not finite and > 0, unknown method, or ``S * dt`` outside the
+            stability interval.
+    """
+    S = params.S if isinstance(params, FatigueParams) else _check_rate("check_stabiliser", "S", params, "1/s")
+    key = method.lower()
+    if key not in STABILITY_LIMITS:
+        raise ParameterError(f"check_stabiliser: method = {method!r}: expected one of {sorted(STABILITY_LIMITS)}")
+    if isinstance(dt, bool) or not isinstance(dt, Real) or not math.isfinite(float(dt)) or float(dt) <= 0.0:
+        raise ParameterError(f"check_stabiliser: dt = {dt!r}: expected a finite step > 0 (s)")
+    limit = STABILITY_LIMITS[key]
+    if limit is None:
+        return None
+    z = S * float(dt)
+    if z >= limit:
+        raise ParameterError(
+            f"stabiliser S = {S!r} 1/s with {method} step dt = {float(dt)!r} s: S*dt = {z:.6g} is outside the "
+            f"method's stability interval on the real axis (S*dt must be < {limit:.6g}, i.e. S < {limit / float(dt):.6g} 1/s "
+            f"or dt < {limit / S:.6g} s); the error of ma + mr + mf would grow instead of decay"
+        )
+    coeffs = _STABILITY_POLYNOMIALS[key]
+    return float(sum(c * (-z) ** k for k, c in enumerate(coeffs)))
+
+
+@functools.cache
+def fatigue_rhs() -> ca.Function:
+    """The 3CC-S right-hand side as an SX ``casadi.Function`` (built once, then cached).
+
+    Inputs:
+        ``m`` (3): states ``(ma, mr, mf)`` (dimensionless);
+        ``TL`` (1): target load (dimensionless, in [0, 1]);
+        ``p`` (6): parameters ``[LD, LR, F, R, S, r]`` (1/s, except ``r`` dimensionless).
+
+    Output:
+        ``dm`` (3): ``(dma/dt, dmr/dt, dmf/dt)`` (1/s).
+
+    The controller C uses exact ``casadi.if_else`` branches. Call it on SX to inline it, on MX to
+    get a call node, or on numbers (returns a ``casadi.DM``).
+    """
+    m = ca.SX.sym("m", 3)
+    TL = ca.SX.sym("TL")
+    p = ca.SX.sym("p", 6)
+    ma, mr, mf = m[0], m[1], m[2]
+    LD, LR, F, R, S, r = (p[i] for i in range(6))
+
+    developing = ma < TL
+    C = ca.if_else(
+        developing,
+        ca.if_else(mr >= TL - ma, LD * (TL - ma), LD * mr),
+        LR * (TL - ma),
+    )
+    R_eff = ca.if_else(developing, R, r * R)
+    dma = C - F * ma
+    dmr = -C + R_eff * mf
+    dmf = F * ma - R_eff * mf + S * (1 - ma - mr - mf)
+    return ca.Function("fatigue_rhs", [m, TL, p], [ca.vertcat(dma, dmr, dmf)], ["m", "TL", "p"], ["dm"])
+
+
+def _param_vector(params: FatigueParams | np.ndarray) -> np.ndarray:
+    if isinstance(params, FatigueParams):
+        return params.as_vector()
+    p = np.asarray(params, dtype=float).reshape(-1)
+    if p.shape != (6,):
+        raise DimensionError(f"fatigue parameter vector of shape {np.shape(params)}: expected 6 entries {list(PARAM_NAMES)}")
+    return p
+
+
+def rhs_numeric(t: float, m: np.ndarray, TL: float, params: FatigueParams | np.ndarray) -> np.ndarray:
+    """Evaluate :func:`fatigue_rhs` on numbers, with the ``(t, y)`` signature of scipy.
+
+    Args:
+        t: time (s); unused (the model is autonomous), kept for ``solve_ivp``.
+        m: states ``(ma, mr, mf)``, shape (3,).
+        TL: target load (dimensionless).
+        params: a :class:`FatigueParams` or the vector ``[LD, LR, F, R, S, r]``.
+
+    Returns:
+        ``dm/dt``, shape (3,) (1/s).
+    """
+    del t
+    m = np.asarray(m, dtype=float).reshape(-1)
+    if m.shape != (3,):
+        raise DimensionError(f"fatigue state of shape {m.shape}: expected 3 entries (ma, mr, mf)")
+    return fatigue_rhs()(m, float(TL), _param_vector(params)).full().reshape(3)
+
+
+@dataclass(frozen=True)
+class FatigueTrajectory:
+    """A simulated fatigue trajectory of one actuator.
+
+    Attributes:
+        t: times (s), shape (n,).
+        ma, mr, mf: states at ``t`` (dimensionless), shape (n,) each.
+        params: the parameters used.
+        method, rtol, atol: the scipy integrator settings.
+        success, message: as reported by ``solve_ivp``.
+        nfev: number of right-hand-side evaluations.
+    """
+
+    t: np.ndarray
+    ma: np.ndarray
+    mr: np.ndarray
+    mf: np.ndarray
+    params: FatigueParams
+    method: str
+    rtol: float
+    atol: float
+    success: bool
+    message: str
+    nfev: int
+
+    @property
+    def m(self) -> np.ndarray:
+        """States stacked as rows ``(ma, mr, mf)``, shape (3, n)."""
+        return np.vstack([self.ma, self.mr, self.mf])
+
+    @property
+    def total(self) -> np.ndarray:
+        """``ma + mr + mf``, shape (n,)."""
+        return self.ma + self.mr + self.mf
+
+    @property
+    def invariant_error(self) -> np.ndarray:
+        """``|1 - (ma + mr + mf)|``, shape (n,)."""
+        return invariant_error(self.m)
+
+
+def simulate(
+    params: FatigueParams,
+    TL: float | Callable[[float], float],
+    m0: tuple[float, float, float] | np.ndarray,
+    t_end: float,
+    t_eval: np.ndarray | None = None,
+    method: str = "RK45",
+    rtol: float = 1e-3,
+    atol: float = 1e-6,
+    **solve_ivp_options: object,
+) -> FatigueTrajectory:
+    """Integrate one fatigue model with ``scipy.integrate.solve_ivp``.
+
+    Args:
+        params: the fatigue parameters.
+        TL: target load (dimensionless), a constant or a function of time ``TL(t)``.
+        m0: initial states ``(ma, mr, mf)``, shape (3,).
+        t_end: final time (s), > 0; the simulation starts at t = 0.
+        t_eval: output times (s); ``None`` returns the integrator's own steps.
+        method, rtol, atol: integrator and tolerances (scipy's defaults are RK45, 1e-3, 1e-6).
+        **solve_ivp_options: passed on to ``solve_ivp`` (e.g. ``max_step``, ``first_step``).
+
+    Returns:
+        A :class:`FatigueTrajectory`; check ``success`` before using it.
+    """
+    y0 = np.asarray(m0, dtype=float).reshape(-1)
+    if y0.shape != (3,):
+        raise DimensionError(f"m0 of shape {np.shape(m0)}: expected 3 entries (ma, mr, mf)")
+    if not math.isfinite(float(t_end)) or float(t_end) <= 0.0:
+        raise ParameterError(f"simulate: t_end = {t_end!r}: expected a finite time > 0 (s)")
+    f = fatigue_rhs()
+    p = params.as_vector()
+    if callable(TL):
+        load = TL
+
+        def rhs(t: float, y: np.ndarray) -> np.ndarray:
+            return f(y, float(load(t)), p).full().reshape(3)
+
+    else:
+        tl = float(TL)
+
+        def rhs(t: float, y: np.ndarray) -> np.ndarray:
+            return f(y, tl, p).full().reshape(3)
+
+    out = solve_ivp(
+        rhs, (0.0, float(t_end)), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol, **solve_ivp_options
+    )
+    return FatigueTrajectory(
+        t=out.t,
+        ma=out.y[0],
+        mr=out.y[1],
+        mf=out.y[2],
+        params=params,
+        method=method,
+        rtol=float(rtol),
+        atol=float(atol),
+        success=bool(out.success),
+        message=str(out.message),
+        nfev=int(out.nfev),
+    )
+
+
+def invariant_error(m: np.ndarray) -> np.ndarray | float:
+    """``|1 - (ma + mr + mf)|`` of states stacked along the first axis.
+
+    Args:
+        m: states ``(ma, mr, mf)``, shape (3,) or (3, n).
+
+    Returns:
+        The invariant error (dimensionless): a float for shape (3,), shape (n,) otherwise.
+    """
+    a = np.asarray(m, dtype=float)
+    if a.ndim == 0 or a.shape[0] != 3:
+        raise DimensionError(f"states of shape {a.shape}: expected (3,) or (3, n) with rows (ma, mr, mf)")
+    err = np.abs(1.0 - a.sum(axis=0))
+    return float(err) if err.ndim == 0 else err

@@ -1,0 +1,204 @@
+"""Rigid-body models: load a fixed-base URDF with Pinocchio and expose its CasADi dynamics.
+
+``load_model()`` returns the bundled arm26 (two revolute joints, 3.6 kg dumbbell in the hand);
+``load_model(path)`` loads any fixed-base robot whose joints are all revolute or prismatic
+(one position and one velocity per joint).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from fatigue_pin.dynamics import casadi_dynamics
+from fatigue_pin.errors import DimensionError, ModelError
+
+#: Joint model short names Pinocchio uses for one-DoF revolute and prismatic joints.
+_SUPPORTED_JOINTS = (
+    "JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+    "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned",
+)
+
+
+def bundled_urdf(name: str = "arm26") -> Path:
+    """Path of a URDF shipped with fatigue_pin (``arm26``)."""
+    here = Path(__file__).resolve().parent
+    for folder in (here / "urdf", here.parent / "urdf"):  # installed wheel, then source tree
+        path = folder / f"{name}.urdf"
+        if path.is_file():
+            return path
+    raise ModelError(f"bundled URDF {name!r} not found next to the package ({here}); reinstall fatigue_pin")
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A fixed-base rigid-body model with its bounds and CasADi dynamics.
+
+    Attributes:
+        name: model name from the URDF.
+        urdf_path: the URDF file the model was built from.
+        pin_model: the Pinocchio model (gravity (0, 0, -9.81) m/s^2 unless changed).
+        joint_names: names of the actuated joints, in Pinocchio order (length nv).
+        q_lower, q_upper: position bounds, shape (nq,), rad or m.
+        v_lower, v_upper: velocity bounds, shape (nv,), rad/s or m/s.
+        tau_lower, tau_upper: torque/force bounds, shape (nv,), N m or N (tau_lower < 0 < tau_upper).
+        aba: ``casadi.Function`` (q[nq], v[nv], tau[nv]) -> ddq[nv], Pinocchio's ABA on SX.
+        rnea: ``casadi.Function`` (q[nq], v[nv], a[nv]) -> tau[nv], Pinocchio's RNEA on SX.
+    """
+
+    name: str
+    urdf_path: Path
+    pin_model: pin.Model = field(repr=False)
+    joint_names: tuple[str, ...]
+    q_lower: np.ndarray = field(repr=False)
+    q_upper: np.ndarray = field(repr=False)
+    v_lower: np.ndarray = field(repr=False)
+    v_upper: np.ndarray = field(repr=False)
+    tau_lower: np.ndarray = field(repr=False)
+    tau_upper: np.ndarray = field(repr=False)
+    aba: ca.Function = field(repr=False)
+    rnea: ca.Function = field(repr=False)
+
+    @property
+    def nq(self) -> int:
+        """Number of configuration variables."""
+        return self.pin_model.nq
+
+    @property
+    def nv(self) -> int:
+        """Number of velocity variables (= number of actuated joints)."""
+        return self.pin_model.nv
+
+    def joint_index(self, joint: str) -> int:
+        """Index of ``joint`` in q, v and tau. Raises ModelError naming the known joints."""
+        if joint not in self.joint_names:
+            raise ModelError(f"joint {joint!r} is not in model {self.name!r}; its joints are {list(self.joint_names)}")
+        return self.joint_names.index(joint)
+
+    def check_state(self, q: np.ndarray, v: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Return q, v as float arrays of shapes (nq,), (nv,); raise DimensionError otherwise."""
+        q = np.asarray(q, dtype=float).reshape(-1)
+        v = np.zeros(self.nv) if v is None else np.asarray(v, dtype=float).reshape(-1)
+        if q.size != self.nq:
+            raise DimensionError(f"q has {q.size} entries; model {self.name!r} expects nq = {self.nq}")
+        if v.size != self.nv:
+            raise DimensionError(f"v has {v.size} entries; model {self.name!r} expects nv = {self.nv}")
+        return q, v
+
+    def gravity_torque(self, q: np.ndarray) -> np.ndarray:
+        """Static holding torques g(q), shape (nv,), N m (torque that keeps the model still at q)."""
+        q, v = self.check_state(q)
+        return np.asarray(self.rnea(q, v, np.zeros(self.nv))).reshape(-1)
+
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint accelerations from the CasADi ABA, shape (nv,)."""
+        q, v = self.check_state(q, v)
+        tau = np.asarray(tau, dtype=float).reshape(-1)
+        if tau.size != self.nv:
+            raise DimensionError(f"tau has {tau.size} entries; model {self.name!r} expects nv = {self.nv}")
+        return np.asarray(self.aba(q, v, tau)).reshape(-1)
+
+    def body_masses(self) -> dict[str, float]:
+        """Mass carried by each joint's subtree body (kg), fixed bodies merged in, by joint name."""
+        return {self.pin_model.names[i]: float(self.pin_model.inertias[i].mass) for i in range(1, self.pin_model.njoints)}
+
+    def summary(self, q: np.ndarray | None = None) -> str:
+        """Human-readable summary: joints, masses, bounds and holding torques at ``q``.
+
+        The default ``q`` of arm26 is (0.07 rad, 15 deg), the initial posture of the curl task;
+        for other models it is the middle of the joint ranges.
+        """
+        if q is None:
+            q = np.array([0.07, math.radians(15.0)]) if self.name == "arm26" else 0.5 * (self.q_lower + self.q_upper)
+        q = self.check_state(q)[0]
+        g = self.gravity_torque(q)
+        masses = self.body_masses()
+        lines = [
+            f"model {self.name} ({self.urdf_path})",
+            f"  nq = {self.nq}, nv = {self.nv}, total mass {sum(masses.values()):.4f} kg, "
+            f"gravity {tuple(float(x) for x in self.pin_model.gravity.linear)} m/s^2",
+            f"  {'joint':<14}{'mass (kg)':>11}{'q range (rad)':>22}{'|v| max (rad/s)':>17}"
+            f"{'tau range (N m)':>19}{'g(q) (N m)':>13}",
+        ]
+        for i, name in enumerate(self.joint_names):
+            lines.append(
+                f"  {name:<14}{masses[name]:>11.4f}{f'[{self.q_lower[i]:.4f}, {self.q_upper[i]:.4f}]':>22}"
+                f"{self.v_upper[i]:>17.4f}{f'[{self.tau_lower[i]:.1f}, {self.tau_upper[i]:.1f}]':>19}{g[i]:>13.4f}"
+            )
+        lines.append(f"  holding torques at q = {np.array2string(q, precision=4)} rad: {np.array2string(g, precision=4)} N m")
+        return "\n".join(lines)
+
+
+def _validate_joints(model: pin.Model, path: Path) -> None:
+    """Reject floating bases and joints other than one-DoF revolute/prismatic, naming them."""
+    for i in range(1, model.njoints):
+        joint = model.joints[i]
+        short = joint.shortname()
+        if short == "JointModelFreeFlyer":
+            raise ModelError(f"{path}: joint {model.names[i]!r} is a floating base; only fixed-base models are supported")
+        if short not in _SUPPORTED_JOINTS:
+            raise ModelError(
+                f"{path}: joint {model.names[i]!r} is of unsupported type {short} (nq={joint.nq}, nv={joint.nv}); "
+                "expected revolute or prismatic joints with one position and one velocity"
+            )
+
+
+def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None) -> RobotModel:
+    """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
+
+    Args:
+        urdf: URDF file; default the bundled arm26 (``urdf/arm26.urdf``).
+        gravity: optional gravity vector (3,) in the world frame, m/s^2 (default (0, 0, -9.81)).
+
+    Returns:
+        A :class:`RobotModel`. Bounds come from the URDF ``<limit>`` tags; a missing or infinite
+        velocity limit becomes +-10*pi rad/s, and a missing effort limit raises ModelError.
+
+    Raises:
+        ModelError: the file is missing or does not parse, the base floats, a joint is unsupported,
+            or a joint has no effort limit.
+    """
+    path = bundled_urdf("arm26") if urdf is None else Path(urdf).expanduser()
+    if not path.is_file():
+        raise ModelError(f"URDF file not found: {str(path)!r} (expected the path of an existing .urdf file)")
+    try:
+        model = pin.buildModelFromUrdf(str(path))
+    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {exc}") from exc
+    _validate_joints(model, path)
+    if model.nv == 0:
+        raise ModelError(f"{path}: the model has no movable joint")
+    if gravity is not None:
+        g = np.asarray(gravity, dtype=float).reshape(-1)
+        if g.size != 3:
+            raise DimensionError(f"gravity has {g.size} entries; expected 3 (m/s^2, world frame)")
+        model.gravity.linear = g
+
+    names = tuple(model.names[i] for i in range(1, model.njoints))
+    q_lower, q_upper = np.array(model.lowerPositionLimit, dtype=float), np.array(model.upperPositionLimit, dtype=float)
+    v_max = np.array(model.velocityLimit, dtype=float)
+    v_max = np.where(np.isfinite(v_max) & (v_max > 0), v_max, 10 * math.pi)
+    effort = np.array(model.effortLimit, dtype=float)
+    for name, e in zip(names, effort):
+        if not (np.isfinite(e) and e > 0):
+            raise ModelError(f"{path}: joint {name!r} has effort limit {e}; expected a finite effort > 0 in its <limit> tag")
+    aba, rnea = casadi_dynamics(model)
+    return RobotModel(
+        name=model.name,
+        urdf_path=path.resolve(),
+        pin_model=model,
+        joint_names=names,
+        q_lower=q_lower,
+        q_upper=q_upper,
+        v_lower=-v_max,
+        v_upper=v_max,
+        tau_lower=-effort,
+        tau_upper=effort.copy(),
+        aba=aba,
+        rnea=rnea,
+    )

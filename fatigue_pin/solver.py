@@ -1,0 +1,238 @@
+"""How an optimal control problem is solved: from a CasADi Opti formulation to IPOPT.
+
+The problem is written with ``casadi.Opti`` (see :mod:`fatigue_pin.ocp`); this module turns it
+into an ``nlpsol`` once and re-solves it with new parameter values as often as needed:
+
+1. ``opti.x, opti.p, opti.f, opti.g`` and the parametric ``opti.lbg, opti.ubg`` are taken from
+   the Opti stack, and ``casadi.detect_simple_bounds`` moves every constraint that bounds one
+   decision variable (state boxes, fixed initial state, task angles, end-of-window bounds) into
+   IPOPT's variable bounds ``lbx, ubx``; only dynamics gaps and coupling constraints stay in ``g``.
+2. With ``compile=True`` the NLP functions IPOPT needs (objective, constraints, gradient,
+   Jacobian, Hessian of the Lagrangian) are generated as C, compiled with the system C compiler
+   and loaded back. The shared library is cached on disk under a hash of the generated source, so
+   the compile cost is paid once per model and discretisation, not per solve or per process.
+3. A failed solve is a result, not an exception: the status, iteration count and last iterate
+   are returned.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.errors import ParameterError
+
+#: IPOPT statuses counted as converged.
+CONVERGED_STATUSES = ("Solve_Succeeded",)
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """IPOPT settings and how the NLP functions are evaluated.
+
+    Attributes:
+        linear_solver: IPOPT's linear solver (``mumps`` ships with CasADi; ``ma57``, ``ma27``,
+            ... need HSL libraries on the machine).
+        tol: IPOPT ``tol`` (overall convergence tolerance).
+        constr_viol_tol: IPOPT ``constr_viol_tol``.
+        max_iter: IPOPT iteration limit.
+        max_wall_time: IPOPT wall-time limit per solve (s); ``None`` for none.
+        print_level: IPOPT verbosity (0 silent, 5 IPOPT's default).
+        compile: generate C for the NLP functions and compile it (cached on disk).
+        compiler: C compiler command.
+        compiler_flags: flags of the compile step (``-O1`` compiles fast and runs well).
+        cache_dir: where compiled NLPs are kept (default ``$FATIGUE_PIN_CACHE`` or
+            ``~/.cache/fatigue_pin``).
+        ipopt: further IPOPT options, passed as they are.
+    """
+
+    linear_solver: str = "mumps"
+    tol: float = 1e-6
+    constr_viol_tol: float = 1e-4
+    max_iter: int = 3000
+    max_wall_time: float | None = None
+    print_level: int = 0
+    compile: bool = True
+    compiler: str = "gcc"
+    compiler_flags: tuple[str, ...] = ("-O1",)
+    cache_dir: Path | None = None
+    ipopt: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("tol", "constr_viol_tol"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"SolverOptions.{name} = {value!r}: expected a finite tolerance > 0")
+        if int(self.max_iter) != self.max_iter or self.max_iter < 0:
+            raise ParameterError(f"SolverOptions.max_iter = {self.max_iter!r}: expected an integer >= 0")
+        if self.max_wall_time is not None and not self.max_wall_time > 0:
+            raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
+        if self.compile and shutil.which(self.compiler) is None:
+            raise ParameterError(
+                f"SolverOptions.compiler = {self.compiler!r} is not on PATH; install a C compiler or set compile=False"
+            )
+
+    def ipopt_options(self) -> dict[str, Any]:
+        """The option dictionary passed to ``nlpsol('ipopt')``."""
+        ipopt: dict[str, Any] = {
+            "linear_solver": self.linear_solver,
+            "tol": self.tol,
+            "constr_viol_tol": self.constr_viol_tol,
+            "max_iter": int(self.max_iter),
+            "print_level": int(self.print_level),
+            "hessian_approximation": "exact",
+            "sb": "yes",
+        }
+        if self.max_wall_time is not None:
+            ipopt["max_wall_time"] = float(self.max_wall_time)
+        ipopt.update(self.ipopt)
+        return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+
+    def resolved_cache_dir(self) -> Path:
+        """Directory of the compiled-NLP cache."""
+        if self.cache_dir is not None:
+            return Path(self.cache_dir)
+        env = os.environ.get("FATIGUE_PIN_CACHE")
+        return Path(env) if env else Path.home() / ".cache" / "fatigue_pin"
+
+
+@dataclass
+class NlpResult:
+    """Outcome of one NLP solve (flat vectors in the reduced NLP's ordering).
+
+    Attributes:
+        x: last iterate, shape (n_x,).
+        lam_x, lam_g: multipliers of the variable bounds and of ``g``.
+        f: objective value.
+        status: IPOPT's return status (e.g. ``Solve_Succeeded``, ``Maximum_Iterations_Exceeded``).
+        success: whether ``status`` counts as converged.
+        iterations: IPOPT iterations.
+        wall_time_s: wall time of the solve call (s).
+    """
+
+    x: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+    f: float
+    status: str
+    success: bool
+    iterations: int
+    wall_time_s: float
+
+
+def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
+    """Compile generated C into a shared library, atomically placed at ``target``."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+        tmp_so = Path(tmp) / target.name
+        cmd = [options.compiler, "-fPIC", "-shared", *options.compiler_flags, str(source), "-o", str(tmp_so), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"compiling the NLP failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
+        os.replace(tmp_so, target)
+
+
+class NlpSolver:
+    """An Opti formulation turned into a reusable IPOPT solver.
+
+    Build it once per problem structure; call :meth:`solve` with new parameter values, initial
+    guesses and multipliers as often as needed. Nothing symbolic is rebuilt between solves.
+
+    Args:
+        opti: the formulated problem (variables, parameters, objective and constraints set).
+        options: solver settings.
+        name: a name for the generated code (the cache key also hashes the code itself).
+    """
+
+    def __init__(self, opti: ca.Opti, options: SolverOptions, name: str = "fatigue_ocp") -> None:
+        t0 = time.perf_counter()
+        self.options = options
+        self.opti = opti
+        x, p, f, g = opti.x, opti.p, opti.f, opti.g
+        lbg, ubg = opti.lbg, opti.ubg
+        gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g, lbg, ubg)
+        gi = [int(i) for i in gi]
+        self.n_x = x.numel()
+        self.n_p = p.numel()
+        self.n_g = len(gi)
+        #: bounds of the reduced NLP as a function of the parameters
+        self._bounds = ca.Function("bounds", [p], [lbx, ubx, lbg[gi], ubg[gi]])
+        nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
+        opts = options.ipopt_options()
+        self.compile_time_s = 0.0
+        self.compiled_path: Path | None = None
+        if options.compile:
+            solver = ca.nlpsol(name, "ipopt", nlp, opts)
+            self._solver = self._compiled(solver, name, opts)
+        else:
+            self._solver = ca.nlpsol(name, "ipopt", nlp, opts)
+        self.build_time_s = time.perf_counter() - t0
+
+    def _compiled(self, solver: ca.Function, name: str, opts: dict[str, Any]) -> ca.Function:
+        t0 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            cwd = os.getcwd()
+            os.chdir(tmp)
+            try:
+                solver.generate_dependencies(f"{name}.c")
+            finally:
+                os.chdir(cwd)
+            source = Path(tmp) / f"{name}.c"
+            digest = hashlib.sha256(source.read_bytes() + " ".join(self.options.compiler_flags).encode()).hexdigest()[:20]
+            target = self.options.resolved_cache_dir() / f"{name}_{digest}.so"
+            if not target.exists():
+                _compile_shared(source, target, self.options)
+                self.compile_time_s = time.perf_counter() - t0
+        self.compiled_path = target
+        return ca.nlpsol(name, "ipopt", str(target), opts)
+
+    def bounds(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Numeric ``lbx, ubx, lbg, ubg`` of the reduced NLP for parameter vector ``p``."""
+        return tuple(np.asarray(v, dtype=float).reshape(-1) for v in self._bounds(p))  # type: ignore[return-value]
+
+    def solve(
+        self,
+        p: np.ndarray,
+        x0: np.ndarray,
+        lam_x0: np.ndarray | None = None,
+        lam_g0: np.ndarray | None = None,
+    ) -> NlpResult:
+        """Solve with parameters ``p`` from the initial guess ``x0`` (and multipliers, if given).
+
+        Args:
+            p: parameter vector, shape (n_p,) in Opti's parameter order.
+            x0: initial guess, shape (n_x,) in Opti's variable order.
+            lam_x0, lam_g0: initial multipliers (e.g. from a previous solve) for warm starts.
+        """
+        lbx, ubx, lbg, ubg = self.bounds(p)
+        x0 = np.clip(np.asarray(x0, dtype=float).reshape(-1), lbx, ubx)
+        args: dict[str, Any] = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
+        if lam_x0 is not None:
+            args["lam_x0"] = lam_x0
+        if lam_g0 is not None:
+            args["lam_g0"] = lam_g0
+        t0 = time.perf_counter()
+        sol = self._solver(**args)
+        wall = time.perf_counter() - t0
+        stats = self._solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        return NlpResult(
+            x=np.asarray(sol["x"], dtype=float).reshape(-1),
+            lam_x=np.asarray(sol["lam_x"], dtype=float).reshape(-1),
+            lam_g=np.asarray(sol["lam_g"], dtype=float).reshape(-1),
+            f=float(sol["f"]),
+            status=status,
+            success=status in CONVERGED_STATUSES,
+            iterations=int(stats.get("iter_count", -1)),
+            wall_time_s=wall,
+        )
