@@ -27,6 +27,65 @@ def _cmd_forward(args: argparse.Namespace) -> int:
     return 0
 
 
+def _ocp_settings(args: argparse.Namespace, n_cycles: int = 1):
+    from fatigue_pin.ocp import OcpSettings
+    from fatigue_pin.solver import SolverOptions
+
+    solver = SolverOptions(linear_solver=args.linear_solver, compile=not args.no_compile, print_level=args.print_level)
+    return OcpSettings(n_cycles=n_cycles, cost=args.cost, preset=args.preset, S=args.stabilization, solver=solver)
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+def _cmd_solve(args: argparse.Namespace) -> int:
+    from fatigue_pin.model import load_model
+    from fatigue_pin.results import write_run
+
+    model = load_model(args.urdf)
+    if args.horizon == "full":
+        from fatigue_pin.full import default_run_name, solution_to_run, solve_full
+
+        settings = _ocp_settings(args, args.cycles)
+        ocp, sol = solve_full(model, settings, progress=_say)
+        run = solution_to_run(ocp, sol, args.name or default_run_name(settings, "full"))
+        write_run(args.out, run)
+        print(f"{'converged' if sol.success else 'NOT CONVERGED (' + sol.status + ')'}; wrote {args.out} [{run.name}]")
+        return 0 if sol.success else 1
+    from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
+
+    sliding = SlidingSettings(window=args.window, advance=args.advance, max_cycles=args.max_cycles)
+    runner = SlidingHorizon(model, _ocp_settings(args), sliding)
+    _say(f"sliding horizon: {args.window}-cycle window advancing {args.advance}, NLP built in {runner.ocp.build_time_s:.1f} s")
+    run = runner.run(args.out, name=args.name, resume=args.resume, progress=_say)
+    print(f"{run.attrs['repetitions']} repetitions ({run.attrs['converged_windows']} windows converged, "
+          f"{run.attrs['wall_time_s']:.1f} s solving); wrote {args.out} [{run.name}]")
+    return 0
+
+
+def _cmd_max_cycles(args: argparse.Namespace) -> int:
+    from fatigue_pin.full import max_repetitions
+    from fatigue_pin.model import load_model
+
+    model = load_model(args.urdf)
+    result = max_repetitions(model, _ocp_settings(args), n_max=args.n_max, progress=_say, out=args.out)
+    print(f"maximum repetitions: {result.max_cycles} (tried N = {[r['n_cycles'] for r in result.tried]}); wrote {args.out}")
+    return 0
+
+
+def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--cost", default="fatigue-torque", choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
+    p.add_argument("--stabilization", "-S", type=float, default=10.0, help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
+    p.add_argument("--preset", default="paper", choices=["paper", "authors-code"], help="values of the paper text or the authors' code")
+    p.add_argument("--linear-solver", default="mumps", help="IPOPT linear solver (default mumps)")
+    p.add_argument("--no-compile", action="store_true", help="evaluate the NLP without generating and compiling C")
+    p.add_argument("--print-level", type=int, default=0, help="IPOPT print level")
+    p.add_argument("--urdf", type=Path, default=None, help="URDF file (default: bundled arm26)")
+    p.add_argument("--out", type=Path, required=True, help="HDF5 result file (runs are added or replaced)")
+    p.add_argument("--name", default=None, help="run name in the file (default: <horizon>/<cost>_S<S>)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="fatigue-pin",
@@ -41,6 +100,21 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("forward", help="forward studies of the 3CC / 3CC-S fatigue model (paper section 2)")
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.set_defaults(func=_cmd_forward)
+
+    p = sub.add_parser("solve", help="solve the fatigue OCP of the curl over the full horizon or window by window")
+    p.add_argument("horizon", choices=["full", "sliding"])
+    p.add_argument("--cycles", type=int, default=1, help="full horizon: number of cycles")
+    p.add_argument("--window", type=int, default=3, help="sliding: cycles per window")
+    p.add_argument("--advance", type=int, default=1, help="sliding: cycles the window advances")
+    p.add_argument("--max-cycles", type=int, default=None, help="sliding: stop once this many cycles are kept")
+    p.add_argument("--resume", action="store_true", help="sliding: continue the run stored in --out")
+    _add_ocp_arguments(p)
+    p.set_defaults(func=_cmd_solve)
+
+    p = sub.add_parser("max-cycles", help="largest number of cycles the full-horizon OCP converges for")
+    p.add_argument("--n-max", type=int, default=64, help="largest N tried")
+    _add_ocp_arguments(p)
+    p.set_defaults(func=_cmd_max_cycles)
 
     return parser
 

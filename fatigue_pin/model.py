@@ -35,6 +35,33 @@ def bundled_urdf(name: str = "arm26") -> Path:
     raise ModelError(f"bundled URDF {name!r} not found next to the package ({here}); reinstall fatigue_pin")
 
 
+#: URDFs of example-robot-data known by short name (paths below its ``robots`` folder).
+EXAMPLE_ROBOTS = {
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "panda": "panda_description/urdf/panda.urdf",
+}
+
+
+def example_robot_urdf(name: str) -> Path:
+    """Path of a URDF shipped by the ``example-robot-data`` wheel.
+
+    Args:
+        name: a short name of :data:`EXAMPLE_ROBOTS` (``ur5``, ``panda``) or a path below the
+            package's ``robots`` folder (e.g. ``"ur_description/urdf/ur5_robot.urdf"``).
+    """
+    from importlib import metadata
+
+    relative = EXAMPLE_ROBOTS.get(name, name)
+    try:
+        files = metadata.files("example-robot-data") or []
+    except metadata.PackageNotFoundError as exc:
+        raise ModelError("example-robot-data is not installed (pip install example-robot-data)") from exc
+    for f in files:
+        if str(f).endswith("example-robot-data/robots/" + relative):
+            return Path(f.locate()).resolve()
+    raise ModelError(f"example-robot-data has no URDF {name!r}; known names: {sorted(EXAMPLE_ROBOTS)}")
+
+
 @dataclass(frozen=True)
 class RobotModel:
     """A fixed-base rigid-body model with its bounds and CasADi dynamics.

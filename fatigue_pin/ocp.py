@@ -41,6 +41,7 @@ for any cost, stabiliser, window or initial state.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass, field, replace
 from typing import Mapping
@@ -219,6 +220,10 @@ class OcpSettings:
         substeps: RK4 steps per shooting interval.
         end_tolerance: if set, q and qdot at the last node are bounded to a reference state
             +- end_tolerance * (their bound range) (0.01 in the sliding windows).
+        expand: integrate the rigid body as one expanded SX function per interval instead of MX
+            calls of the SX dynamics (much longer compile, slower; kept for comparisons).
+        parallel: how the interval functions are mapped over the horizon: ``serial``,
+            ``openmp`` (compiled code on every core) or ``auto`` (openmp when compiled).
         solver: IPOPT settings.
     """
 
@@ -231,6 +236,8 @@ class OcpSettings:
     task: CyclicTask | None = None
     substeps: int = 5
     end_tolerance: float | None = None
+    expand: bool = False
+    parallel: str = "auto"
     solver: SolverOptions = field(default_factory=SolverOptions)
 
     def __post_init__(self) -> None:
@@ -244,6 +251,8 @@ class OcpSettings:
             raise ParameterError(f"OcpSettings.S = {self.S!r}: expected a finite stabiliser >= 0 (1/s)")
         if int(self.substeps) != self.substeps or self.substeps < 1:
             raise ParameterError(f"OcpSettings.substeps = {self.substeps!r}: expected an integer >= 1")
+        if self.parallel not in ("auto", "serial", "openmp", "thread"):
+            raise ParameterError(f"OcpSettings.parallel = {self.parallel!r}: expected 'auto', 'serial', 'openmp' or 'thread'")
         if self.end_tolerance is not None and not (0 <= self.end_tolerance < 1):
             raise ParameterError(f"OcpSettings.end_tolerance = {self.end_tolerance!r}: expected a fraction in [0, 1) or None")
 
@@ -307,49 +316,74 @@ class StateLayout:
         return [self.nq + self.nv + 3 * h + k for h in range(self.n_halves)]
 
 
+def rk4(f: ca.Function, x: ca.MX | ca.SX, args: tuple, h: float, steps: int) -> ca.MX | ca.SX:
+    """``steps`` classical Runge-Kutta steps of length ``h`` of ``xdot = f(x, *args)``."""
+    for _ in range(steps):
+        k1 = f(x, *args)
+        k2 = f(x + h / 2 * k1, *args)
+        k3 = f(x + h / 2 * k2, *args)
+        k4 = f(x + h * k3, *args)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
 class IntervalFunctions:
-    """The SX functions of one shooting interval, built once per model, actuators and dt.
+    """The functions of one shooting interval, built once per model, actuators and dt.
+
+    With piecewise-constant controls the rigid-body states (q, qdot) and the fatigue states m
+    evolve independently over an interval, so RK4 on the whole state equals RK4 on each part.
+    The two parts are integrated by separate functions, which keeps their derivatives (and the
+    exact Hessian) small.
 
     Attributes:
-        f: continuous dynamics ``f(x, u, p_fatigue) -> xdot``.
-        F: one interval of RK4 with ``substeps`` steps, ``F(x, u, p_fatigue) -> x_next``.
+        f_rb: ``f_rb(y, tau) -> ydot`` with y = (q, qdot): Pinocchio's ABA (SX).
+        f_fatigue: ``f_fatigue(m, u, p) -> mdot`` of all actuator halves (SX).
+        F_rb: ``F_rb(y, tau) -> y_next``, RK4 over one interval (MX calls of f_rb, or SX if expand).
+        F_fatigue: ``F_fatigue(m, u, p) -> m_next``, RK4 over one interval (SX).
         coupling: ``coupling(x, u) -> TL + mf`` of every half.
-        terms: unweighted cost terms of one interval ``terms(x, u, u_prev) -> (4,)`` already
-            multiplied by dt (torque-rate term for the interval's own ``u - u_prev``).
+        terms: unweighted cost terms of one interval ``terms(x, u, u_prev) -> (4,)``, times dt.
     """
 
-    def __init__(self, model: RobotModel, actuators: SignedTorqueActuators, task: CyclicTask, substeps: int) -> None:
+    def __init__(self, model: RobotModel, actuators: SignedTorqueActuators, task: CyclicTask, substeps: int,
+                 expand: bool = False) -> None:
         layout = StateLayout(model.nq, model.nv, actuators.n_halves)
         self.layout = layout
-        nx, nu, nv = layout.nx, layout.nu, layout.nv
-        n_p = actuators.n_halves * 6
-        x = ca.SX.sym("x", nx)
-        u = ca.SX.sym("u", nu)
-        u_prev = ca.SX.sym("u_prev", nu)
-        p = ca.SX.sym("p_fatigue", n_p)
-        q, v, m = x[layout.q], x[layout.v], x[layout.m]
-        tau_plus, tau_minus = u[:nv], u[nv:]
-        ddq = model.aba(q, v, tau_plus + tau_minus)
-        dm = actuators.fatigue_rates(m, tau_plus, tau_minus, p)
-        xdot = ca.vertcat(v, ddq, dm)
-        self.f = ca.Function("f", [x, u, p], [xdot], ["x", "u", "p"], ["xdot"])
-
+        nx, nu, nv, nq = layout.nx, layout.nu, layout.nv, layout.nq
         h = task.dt / substeps
-        xk = x
-        for _ in range(substeps):
-            k1 = self.f(xk, u, p)
-            k2 = self.f(xk + h / 2 * k1, u, p)
-            k3 = self.f(xk + h / 2 * k2, u, p)
-            k4 = self.f(xk + h * k3, u, p)
-            xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self.F = ca.Function("F", [x, u, p], [xk], ["x", "u", "p"], ["x_next"])
 
+        y = ca.SX.sym("y", nq + nv)
+        tau = ca.SX.sym("tau", nv)
+        self.f_rb = ca.Function("f_rb", [y, tau], [ca.vertcat(y[nq:], model.aba(y[:nq], y[nq:], tau))], ["y", "tau"], ["ydot"])
+        if expand:
+            self.F_rb = ca.Function("F_rb", [y, tau], [rk4(self.f_rb, y, (tau,), h, substeps)], ["y", "tau"], ["y_next"])
+        else:
+            # RK4 as MX calls of the SX f_rb: its derivative code stays small (fast to compile)
+            y_mx, tau_mx = ca.MX.sym("y", nq + nv), ca.MX.sym("tau", nv)
+            self.F_rb = ca.Function("F_rb", [y_mx, tau_mx], [rk4(self.f_rb, y_mx, (tau_mx,), h, substeps)], ["y", "tau"], ["y_next"])
+
+        m = ca.SX.sym("m", 3 * actuators.n_halves)
+        u = ca.SX.sym("u", nu)
+        p = ca.SX.sym("p_fatigue", 6 * actuators.n_halves)
+        self.f_fatigue = ca.Function("f_fatigue", [m, u, p], [actuators.fatigue_rates(m, u[:nv], u[nv:], p)], ["m", "u", "p"], ["mdot"])
+        self.F_fatigue = ca.Function("F_fatigue", [m, u, p], [rk4(self.f_fatigue, m, (u, p), h, substeps)], ["m", "u", "p"], ["m_next"])
+
+        x = ca.SX.sym("x", nx)
+        u_prev = ca.SX.sym("u_prev", nu)
+        q = x[layout.q]
         mf = x[layout.fatigue_index("mf")]
-        self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(m, tau_plus, tau_minus)], ["x", "u"], ["TL_plus_mf"])
+        self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(x[layout.m], u[:nv], u[nv:])], ["x", "u"], ["TL_plus_mf"])
         posture_rows = [model.joint_names.index(j) for j in task.penalised_joints]
         posture = ca.sumsqr(q[posture_rows]) if posture_rows else ca.SX(0)
         terms = ca.vertcat(posture, ca.sumsqr(u - u_prev), ca.sumsqr(mf), ca.sumsqr(u)) * task.dt
         self.terms = ca.Function("terms", [x, u, u_prev], [terms], ["x", "u", "u_prev"], ["terms"])
+
+    def step(self, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Numeric state after one interval, shape (nx,)."""
+        L = self.layout
+        nv = L.nv
+        y = np.asarray(self.F_rb(x[: L.nq + nv], u[:nv] + u[nv:])).reshape(-1)
+        m = np.asarray(self.F_fatigue(x[L.m], u, p)).reshape(-1)
+        return np.concatenate([y, m])
 
 
 @dataclass
@@ -421,7 +455,7 @@ class FatigueOcp:
         self.actuators = SignedTorqueActuators.from_model(model, settings.resolved_fatigue())
         self.actuators.check_stabiliser(task.dt / settings.substeps, "rk4")
         self.n_intervals = N = settings.n_cycles * task.intervals_per_cycle
-        self.functions = fn = IntervalFunctions(model, self.actuators, task, settings.substeps)
+        self.functions = fn = IntervalFunctions(model, self.actuators, task, settings.substeps, expand=settings.expand)
         self.layout = layout = fn.layout
         nx, nu = layout.nx, layout.nu
 
@@ -429,7 +463,10 @@ class FatigueOcp:
         self.opti = opti
         X = opti.variable(nx, N + 1)
         U = opti.variable(nu, N)
-        self.X, self.U = X, U
+        # joint torque tau_plus + tau_minus as its own variable: the rigid-body dynamics then
+        # depend on nv torques instead of 2 nv halves, which halves the exact Hessian's cost
+        T = opti.variable(layout.nv, N)
+        self.X, self.U, self.T = X, U, T
         P_fatigue = opti.parameter(self.actuators.n_halves * 6)
         P_weights = opti.parameter(len(COST_TERMS))
         X_lb, X_ub = opti.parameter(nx, N + 1), opti.parameter(nx, N + 1)
@@ -437,8 +474,12 @@ class FatigueOcp:
         self._params = (P_fatigue, P_weights, X_lb, X_ub, U_lb, U_ub)
 
         # Dynamics: multiple-shooting gaps, one mapped RK4 interval function.
-        F_all = fn.F.map(N)
-        opti.subject_to(X[:, 1:] == F_all(X[:, :N], U, P_fatigue))
+        ny, nv = layout.nq + layout.nv, layout.nv
+        mode = settings.parallel if settings.parallel != "auto" else ("openmp" if settings.solver.compile else "serial")
+        par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+        opti.subject_to(T == U[:nv, :] + U[nv:, :])
+        opti.subject_to(X[:ny, 1:] == fn.F_rb.map(N, *par)(X[:ny, :N], T))
+        opti.subject_to(X[ny:, 1:] == fn.F_fatigue.map(N, *par)(X[ny:, :N], U, P_fatigue))
         # Torque / fatigue coupling at every node (the last node uses the last control).
         coupling = fn.coupling.map(N + 1)(X, ca.horzcat(U, U[:, N - 1]))
         opti.subject_to(opti.bounded(0, coupling, 1))
@@ -542,7 +583,7 @@ class FatigueOcp:
         x[0, L.m] = x_init[L.m]
         p = self.actuators.param_vector()
         for k in range(N):
-            step = np.asarray(self.functions.F(np.r_[q[k], qdot[k], x[k, L.m]], u[k], p)).reshape(-1)
+            step = self.functions.step(np.r_[q[k], qdot[k], x[k, L.m]], u[k], p)
             x[k + 1, L.m] = np.clip(step[L.m], 0.0, 1.0)
         return x
 
@@ -569,15 +610,18 @@ class FatigueOcp:
         return x, u
 
     def flatten(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Decision vector in Opti's order from states (N+1, nx) and controls (N, nu)."""
-        return np.concatenate([np.asarray(x, dtype=float).T.reshape(-1, order="F"), np.asarray(u, dtype=float).T.reshape(-1, order="F")])
+        """Decision vector in Opti's order (X, U, T) from states (N+1, nx) and controls (N, nu)."""
+        x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float)
+        nv = self.layout.nv
+        tau = u[:, :nv] + u[:, nv:]
+        return np.concatenate([x.T.reshape(-1, order="F"), u.T.reshape(-1, order="F"), tau.T.reshape(-1, order="F")])
 
     def unflatten(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, nx) and controls (N, nu) from a decision vector."""
         N, L = self.n_intervals, self.layout
-        nX = L.nx * (N + 1)
+        nX, nU = L.nx * (N + 1), L.nu * N
         x = z[:nX].reshape((L.nx, N + 1), order="F").T
-        u = z[nX:].reshape((L.nu, N), order="F").T
+        u = z[nX : nX + nU].reshape((L.nu, N), order="F").T
         return x, u
 
     # -- solving ----------------------------------------------------------------------------------
@@ -589,6 +633,7 @@ class FatigueOcp:
         x_end: np.ndarray | None = None,
         warm: NlpResult | None = None,
         weights: CostWeights | None = None,
+        max_iter: int | None = None,
     ) -> OcpSolution:
         """Solve the OCP.
 
@@ -598,6 +643,7 @@ class FatigueOcp:
             x_end: reference state of the end bounds (with ``end_tolerance`` set).
             warm: a previous result of the same problem whose multipliers start this solve.
             weights: cost weights for this solve (default: the settings').
+            max_iter: IPOPT iteration limit of this solve (default: the solver options').
 
         Returns:
             An :class:`OcpSolution`; check ``success`` before using it as optimal.
@@ -609,7 +655,7 @@ class FatigueOcp:
             guess = self.physical_guess(x_init)
         p = self.parameter_vector(x_init, x_end, weights)
         z0 = self.flatten(*guess)
-        res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None)
+        res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None, max_iter=max_iter)
         x, u = self.unflatten(res.x)
         w = (weights or self.settings.resolved_weights()).vector
         terms = np.asarray(self._terms_fn(x.T, u.T))  # (4, N)

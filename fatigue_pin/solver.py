@@ -50,7 +50,8 @@ class SolverOptions:
         print_level: IPOPT verbosity (0 silent, 5 IPOPT's default).
         compile: generate C for the NLP functions and compile it (cached on disk).
         compiler: C compiler command.
-        compiler_flags: flags of the compile step (``-O1`` compiles fast and runs well).
+        compiler_flags: flags of the compile step (``-O1`` compiles fast and runs well;
+            ``-fopenmp`` lets maps over intervals use every core).
         cache_dir: where compiled NLPs are kept (default ``$FATIGUE_PIN_CACHE`` or
             ``~/.cache/fatigue_pin``).
         ipopt: further IPOPT options, passed as they are.
@@ -64,7 +65,7 @@ class SolverOptions:
     print_level: int = 0
     compile: bool = True
     compiler: str = "gcc"
-    compiler_flags: tuple[str, ...] = ("-O1",)
+    compiler_flags: tuple[str, ...] = ("-O1", "-fopenmp")
     cache_dir: Path | None = None
     ipopt: dict[str, Any] = field(default_factory=dict)
 
@@ -168,17 +169,31 @@ class NlpSolver:
         #: bounds of the reduced NLP as a function of the parameters
         self._bounds = ca.Function("bounds", [p], [lbx, ubx, lbg[gi], ubg[gi]])
         nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
-        opts = options.ipopt_options()
+        self._name = name
+        self._nlp = nlp
         self.compile_time_s = 0.0
         self.compiled_path: Path | None = None
+        opts = options.ipopt_options()
         if options.compile:
-            solver = ca.nlpsol(name, "ipopt", nlp, opts)
-            self._solver = self._compiled(solver, name, opts)
+            self._source: dict[str, Any] | str = self._compiled(ca.nlpsol(name, "ipopt", nlp, opts), name)
         else:
-            self._solver = ca.nlpsol(name, "ipopt", nlp, opts)
+            self._source = nlp
+        #: one IPOPT instance per iteration limit (IPOPT options are fixed per instance)
+        self._solvers: dict[int, ca.Function] = {int(options.max_iter): ca.nlpsol(name, "ipopt", self._source, opts)}
         self.build_time_s = time.perf_counter() - t0
 
-    def _compiled(self, solver: ca.Function, name: str, opts: dict[str, Any]) -> ca.Function:
+    def _solver(self, max_iter: int | None = None) -> ca.Function:
+        """The IPOPT instance with iteration limit ``max_iter`` (default: the options')."""
+        key = int(self.options.max_iter if max_iter is None else max_iter)
+        if key not in self._solvers:
+            opts = self.options.ipopt_options()
+            opts["ipopt"]["max_iter"] = key
+            self._solvers[key] = ca.nlpsol(self._name, "ipopt", self._source, opts)
+        return self._solvers[key]
+
+    def _compiled(self, solver: ca.Function, name: str) -> str:
+        """Generate C for ``solver``'s NLP functions, compile it (or find it in the cache) and
+        return the shared library's path."""
         t0 = time.perf_counter()
         with tempfile.TemporaryDirectory() as tmp:
             cwd = os.getcwd()
@@ -194,7 +209,7 @@ class NlpSolver:
                 _compile_shared(source, target, self.options)
                 self.compile_time_s = time.perf_counter() - t0
         self.compiled_path = target
-        return ca.nlpsol(name, "ipopt", str(target), opts)
+        return str(target)
 
     def bounds(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Numeric ``lbx, ubx, lbg, ubg`` of the reduced NLP for parameter vector ``p``."""
@@ -206,6 +221,7 @@ class NlpSolver:
         x0: np.ndarray,
         lam_x0: np.ndarray | None = None,
         lam_g0: np.ndarray | None = None,
+        max_iter: int | None = None,
     ) -> NlpResult:
         """Solve with parameters ``p`` from the initial guess ``x0`` (and multipliers, if given).
 
@@ -213,6 +229,7 @@ class NlpSolver:
             p: parameter vector, shape (n_p,) in Opti's parameter order.
             x0: initial guess, shape (n_x,) in Opti's variable order.
             lam_x0, lam_g0: initial multipliers (e.g. from a previous solve) for warm starts.
+            max_iter: iteration limit of this solve (default: the options').
         """
         lbx, ubx, lbg, ubg = self.bounds(p)
         x0 = np.clip(np.asarray(x0, dtype=float).reshape(-1), lbx, ubx)
@@ -222,9 +239,10 @@ class NlpSolver:
         if lam_g0 is not None:
             args["lam_g0"] = lam_g0
         t0 = time.perf_counter()
-        sol = self._solver(**args)
+        solver = self._solver(max_iter)
+        sol = solver(**args)
         wall = time.perf_counter() - t0
-        stats = self._solver.stats()
+        stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
         return NlpResult(
             x=np.asarray(sol["x"], dtype=float).reshape(-1),

@@ -1,0 +1,271 @@
+"""Sliding-horizon (cyclic NMPC) solves: a window of K cycles advancing A cycles at a time.
+
+Paper section 3 / SPEC section 4. One :class:`~fatigue_pin.ocp.FatigueOcp` of K cycles is built
+(and compiled) once; every window re-solves it with new parameters:
+
+* its initial state is the previous window's state at node A * n (n intervals per cycle);
+* its final q and qdot are bounded to that initial state +- ``end_tolerance`` (1 %) of their range;
+* its initial guess is the previous window's cycle after the advance point (cycle A) copied into
+  every cycle, the fatigue states integrated forward from the copied controls so they are
+  continuous.
+
+The first A cycles of every converged window are kept; the last converged window keeps all K.
+The run stops at the first window that fails, or once ``max_cycles`` cycles are kept.
+Repetitions = A * (converged windows - 1) + K.
+
+After every window the stitched trajectory (kept cycles followed by the whole last converged
+window) and the window table are written to the HDF5 file, atomically; ``resume=True`` reads
+them back and continues with the next window, ending with the same result as an uninterrupted
+run (the guess of a window only depends on the previous window's stored solution).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from fatigue_pin.errors import ParameterError
+from fatigue_pin.full import run_attributes, to_run_result
+from fatigue_pin.model import RobotModel
+from fatigue_pin.ocp import FatigueOcp, OcpSettings
+from fatigue_pin.results import WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
+
+Progress = Callable[[str], None]
+
+
+def _quiet(_: str) -> None:
+    pass
+
+
+@dataclass(frozen=True)
+class SlidingSettings:
+    """Settings of a sliding-horizon run.
+
+    Attributes:
+        window: cycles per window (K, paper: 3).
+        advance: cycles the window advances (A, paper: 1); 1 <= A < K.
+        max_cycles: stop once this many cycles are kept (``None``: until a window fails).
+        end_tolerance: end bounds of q and qdot, fraction of their range (paper: 0.01).
+        failure_iterations: IPOPT iteration limit of a window after the first ``warmup`` windows,
+            as a multiple of the median iterations of the converged windows so far (a failing
+            window is then recognised within about this factor of a normal window's cost).
+            ``None`` keeps the solver's ``max_iter`` for every window (the paper's 3000).
+        min_iterations: the iteration limit is never below this.
+        warmup: windows solved with the solver's own ``max_iter`` before the limit applies.
+    """
+
+    window: int = 3
+    advance: int = 1
+    max_cycles: int | None = None
+    end_tolerance: float = 0.01
+    failure_iterations: float | None = 10.0
+    min_iterations: int = 200
+    warmup: int = 3
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.window, int) and self.window >= 1):
+            raise ParameterError(f"SlidingSettings.window = {self.window!r}: expected an integer number of cycles >= 1")
+        if not (isinstance(self.advance, int) and 1 <= self.advance <= self.window):
+            raise ParameterError(f"SlidingSettings.advance = {self.advance!r}: expected an integer in [1, window = {self.window}]")
+        if self.max_cycles is not None and self.max_cycles < self.window:
+            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected None or >= window = {self.window}")
+        if self.failure_iterations is not None and self.failure_iterations < 1:
+            raise ParameterError(f"SlidingSettings.failure_iterations = {self.failure_iterations!r}: expected None or >= 1")
+
+
+@dataclass
+class _State:
+    """What the next window needs: the stitched run so far and the last converged window."""
+
+    x: np.ndarray          # stitched states (nodes, nx), ends with the whole last converged window
+    u: np.ndarray          # stitched controls (intervals, nu)
+    costs: np.ndarray      # (cycles, terms)
+    cycle_wall: np.ndarray  # (cycles,)
+    windows: list[tuple]   # rows of WINDOW_DTYPE
+    done: bool             # a window failed or max_cycles reached
+
+    @property
+    def n_cycles(self) -> int:
+        return self.costs.shape[0]
+
+
+def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
+    """Cycles achieved by a run whose first ``converged_windows`` windows converged."""
+    if converged_windows <= 0:
+        return 0
+    return settings.advance * (converged_windows - 1) + settings.window
+
+
+class SlidingHorizon:
+    """A sliding-horizon run of the fatigue OCP.
+
+    Args:
+        model: the rigid-body model.
+        settings: OCP settings (``n_cycles`` and ``end_tolerance`` are set from ``sliding``).
+        sliding: window settings.
+    """
+
+    def __init__(self, model: RobotModel, settings: OcpSettings | None = None, sliding: SlidingSettings | None = None) -> None:
+        self.sliding = sliding or SlidingSettings()
+        base = settings or OcpSettings()
+        self.settings = base.with_(n_cycles=self.sliding.window, end_tolerance=self.sliding.end_tolerance)
+        self.ocp = FatigueOcp(model, self.settings)
+        self.model = model
+
+    # -- window mechanics ------------------------------------------------------------------------
+
+    @property
+    def _n(self) -> int:
+        return self.ocp.task.intervals_per_cycle
+
+    def window_guess(self, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Guess of a window from the previous window's states (K n + 1, nx) and controls (K n, nu):
+        its cycle A copied into every cycle, fatigue states integrated from ``x_init``."""
+        n, A, K = self._n, self.sliding.advance, self.sliding.window
+        cyc = min(A, K - 1)
+        u_cycle = u_prev[cyc * n : (cyc + 1) * n]
+        x_cycle = x_prev[cyc * n : (cyc + 1) * n]
+        u = np.tile(u_cycle, (K, 1))
+        xs = np.vstack([np.tile(x_cycle, (K, 1)), x_prev[(cyc + 1) * n][None, :]])
+        L = self.ocp.layout
+        return self.ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u), u
+
+    def _iteration_limit(self, state: _State) -> int | None:
+        """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
+        iterations of the first ``warmup`` converged windows (fixed once known, so a resumed run
+        uses the same limit), at least ``min_iterations``."""
+        s = self.sliding
+        iters = [row[4] for row in state.windows if row[3]][: s.warmup]
+        if s.failure_iterations is None or len(iters) < s.warmup:
+            return None
+        return int(min(self.settings.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+
+    def _run_result(self, state: _State, name: str, build_time: float) -> RunResult:
+        ocp = self.ocp
+        attrs = run_attributes(ocp, "sliding")
+        table = np.array(state.windows, dtype=WINDOW_DTYPE)
+        converged = int(table["converged"].sum()) if table.size else 0
+        attrs.update(
+            n_cycles=state.n_cycles,
+            window=self.sliding.window,
+            advance=self.sliding.advance,
+            max_cycles=-1 if self.sliding.max_cycles is None else self.sliding.max_cycles,
+            repetitions=state.n_cycles,
+            converged=converged > 0,
+            finished=state.done,
+            status=str(table["status"][-1].decode()) if table.size else "not started",
+            wall_time_s=float(table["wall_time_s"].sum()) if table.size else 0.0,
+            build_time_s=build_time,
+            compile_time_s=ocp.nlp.compile_time_s,
+            iterations=int(table["iterations"].sum()) if table.size else 0,
+            converged_windows=converged,
+        )
+        t = np.arange(state.x.shape[0]) * ocp.task.dt
+        return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table)
+
+    def _restore(self, path: Path, name: str) -> _State | None:
+        if not path.exists() or name not in list_runs(path):
+            return None
+        run = read_run(path, name)
+        if run.windows is None:
+            raise ResultFileError(f"run {name!r} in {str(path)!r} has no window table; it is not a sliding-horizon run")
+        for key, mine in (("window", self.sliding.window), ("advance", self.sliding.advance), ("cost", self.settings.cost),
+                          ("S", self.ocp.actuators.halves[0].params.S), ("preset", self.settings.preset)):
+            if run.attrs.get(key) != mine:
+                raise ResultFileError(f"cannot resume run {name!r}: it has {key} = {run.attrs.get(key)!r}, this run {mine!r}")
+        L = self.ocp.layout
+        x = np.zeros((run.t.size, L.nx))
+        x[:, L.q], x[:, L.v] = run.q, run.qdot
+        for state_name, data in (("ma", run.ma), ("mr", run.mr), ("mf", run.mf)):
+            x[:, L.fatigue_index(state_name)] = data
+        u = np.hstack([run.tau_plus, run.tau_minus])
+        windows = [tuple(row) for row in run.windows.tolist()]
+        return _State(x, u, run.cycle_costs, run.cycle_wall_time_s, windows, bool(run.attrs.get("finished", False)))
+
+    # -- the run ---------------------------------------------------------------------------------
+
+    def run(
+        self,
+        out: str | Path | None = None,
+        name: str | None = None,
+        resume: bool = False,
+        progress: Progress = _quiet,
+        stop_after: int | None = None,
+    ) -> RunResult:
+        """Solve windows until one fails or ``max_cycles`` cycles are kept.
+
+        Args:
+            out: HDF5 file that receives the run after every window (``None``: memory only).
+            name: run group name (default ``sliding/<cost>_S<S>``).
+            resume: continue the run stored under ``name`` in ``out``.
+            progress: called with one line per window.
+            stop_after: solve at most this many windows in this call (for tests and batching).
+
+        Returns:
+            The stitched :class:`RunResult` (also in ``out``).
+        """
+        S = self.ocp.actuators.halves[0].params.S
+        name = name or f"sliding/{self.settings.cost}_S{S:g}"
+        path = Path(out) if out is not None else None
+        n, A, K = self._n, self.sliding.advance, self.sliding.window
+        ocp = self.ocp
+        state = self._restore(path, name) if (resume and path is not None) else None
+        if resume and state is not None:
+            progress(f"resuming {name!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
+        build_time = ocp.build_time_s
+        solved = 0
+        while state is None or not state.done:
+            if stop_after is not None and solved >= stop_after:
+                break
+            if state is None:
+                x_init = ocp.initial_state()
+                guess = ocp.physical_guess(x_init)
+                first_cycle = 0
+            else:
+                first_cycle = state.n_cycles - K + A
+                x_prev = state.x[-(K * n + 1):]
+                u_prev = state.u[-(K * n):]
+                x_init = x_prev[A * n].copy()
+                guess = self.window_guess(x_init, x_prev, u_prev)
+            limit = self._iteration_limit(state) if state is not None else None
+            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit)
+            solved += 1
+            index = len(state.windows) if state is not None else 0
+            row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
+            mf_end = sol.fatigue("mf")[A * n]
+            progress(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
+                     f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
+                     f"{'' if limit is None else f' (limit {limit} it)'}  max mf {mf_end.max():.3f}")
+            if state is None:
+                if not sol.success:
+                    state = _State(np.zeros((0, ocp.layout.nx)), np.zeros((0, ocp.layout.nu)), np.zeros((0, sol.cycle_costs.shape[1])),
+                                   np.zeros(0), [row], True)
+                else:
+                    state = _State(sol.x, sol.u, sol.cycle_costs, np.full(K, sol.wall_time_s / K), [row], False)
+                    state.cycle_wall[:A] = sol.wall_time_s / A
+                    state.cycle_wall[A:] = 0.0
+            elif not sol.success:
+                state.windows.append(row)
+                state.done = True
+            else:
+                keep_nodes = state.x.shape[0] - (K - A) * n  # drop the previous window's unkept tail
+                keep_int = state.u.shape[0] - (K - A) * n
+                keep_cyc = state.n_cycles - (K - A)
+                state.x = np.vstack([state.x[: keep_nodes - 1], sol.x])
+                state.u = np.vstack([state.u[:keep_int], sol.u])
+                state.costs = np.vstack([state.costs[:keep_cyc], sol.cycle_costs])
+                wall = np.zeros(K)
+                wall[:A] = sol.wall_time_s / A
+                state.cycle_wall = np.concatenate([state.cycle_wall[:keep_cyc], wall])
+                state.windows.append(row)
+            if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
+                state.done = True
+            if path is not None:
+                write_run(path, self._run_result(state, name, build_time))
+        if state is None:
+            raise RuntimeError("no window was solved")
+        return self._run_result(state, name, build_time)

@@ -1,0 +1,92 @@
+"""Full-horizon driver: the maximum-repetitions search and run records."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fatigue_pin.full as full
+from fatigue_pin.full import extend_guess, max_repetitions, solution_to_run
+from fatigue_pin.ocp import FatigueOcp
+from fatigue_pin.results import read_run, read_search
+
+
+class _FakeSolution:
+    def __init__(self, n: int, ok: bool):
+        self.success, self.status = ok, "Solve_Succeeded" if ok else "Infeasible_Problem_Detected"
+        self.iterations, self.wall_time_s = 10 * n, 0.1 * n
+
+
+class _FakeOcp:
+    """Converges for N <= limit; records the guesses it was given."""
+
+    limit = 5
+    guesses: list = []
+
+    def __init__(self, model, settings):
+        self.settings, self.build_time_s = settings, 0.0
+
+    def solve(self, guess=None):
+        _FakeOcp.guesses.append(guess is not None)
+        n = self.settings.n_cycles
+        return _FakeSolution(n, n <= _FakeOcp.limit)
+
+
+def test_search_gallops_then_bisects(monkeypatch, small_settings):
+    monkeypatch.setattr(full, "FatigueOcp", _FakeOcp)
+    monkeypatch.setattr(full, "extend_guess", lambda ocp, sol: "guess")
+    _FakeOcp.guesses = []
+    result = max_repetitions(None, small_settings, n_max=64)
+    assert result.max_cycles == 5
+    assert [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 6, 5]
+    assert _FakeOcp.guesses == [False, True, True, True, True, True]  # warm-started after the first
+
+
+def test_search_stops_at_n_max(monkeypatch, small_settings):
+    monkeypatch.setattr(full, "FatigueOcp", _FakeOcp)
+    monkeypatch.setattr(full, "extend_guess", lambda ocp, sol: "guess")
+    _FakeOcp.limit = 100
+    try:
+        result = max_repetitions(None, small_settings, n_max=12)
+    finally:
+        _FakeOcp.limit = 5
+    assert result.max_cycles == 12 and [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 12]
+
+
+def test_real_search_on_a_small_problem(arm26, small_settings, tmp_path):
+    """S = 10, fatigue-torque, 10 intervals per cycle, capped at 3 cycles: all converge."""
+    out = tmp_path / "search.h5"
+    result = max_repetitions(arm26, small_settings, n_max=3, out=out)
+    assert result.max_cycles == 3 and [r["n_cycles"] for r in result.tried] == [1, 2, 3]
+    table = read_search(out)["fatigue-torque_S10"]
+    assert list(table["n_cycles"]) == [1, 2, 3] and table["converged"].all()
+    run = read_run(out, "full/fatigue-torque_S10")
+    assert run.n_cycles == 3 and run.converged
+
+
+def test_extend_guess_repeats_the_last_cycle(arm26, small_settings):
+    one = FatigueOcp(arm26, small_settings.with_(n_cycles=1))
+    sol = one.solve()
+    three = FatigueOcp(arm26, small_settings.with_(n_cycles=3))
+    x, u = extend_guess(three, sol)
+    assert x.shape == (31, three.layout.nx) and u.shape == (30, 4)
+    assert np.allclose(u[20:30], sol.u) and np.allclose(x[20:31, :2], sol.q)
+    # fatigue keeps growing through the repeated cycles
+    assert x[-1, three.layout.fatigue_index("mf")].max() > sol.fatigue("mf")[-1].max()
+
+
+def test_run_record_has_every_attribute(arm26, small_settings, tmp_path):
+    from fatigue_pin.results import RUN_ATTRIBUTES, write_run
+
+    ocp = FatigueOcp(arm26, small_settings.with_(n_cycles=2))
+    sol = ocp.solve()
+    run = solution_to_run(ocp, sol, "full/test")
+    write_run(tmp_path / "r.h5", run)
+    back = read_run(tmp_path / "r.h5", "full/test")
+    for key in RUN_ATTRIBUTES:
+        assert key in back.attrs, key
+    assert back.attrs["horizon"] == "full" and back.attrs["converged"] is True or back.attrs["converged"] == 1
+    assert back.torque_limits.shape == (2, 4)
+    assert np.allclose(back.torque_limits[:, 0], 50 * (1 - back.mf[[10, 20], 0]))
+    assert back.actuator_names == ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")
+    assert "<robot" in back.urdf

@@ -1,0 +1,198 @@
+"""The exported replay renders in headless Chromium: no script error, the arm is in view, the
+animation moves it and the fatigue colours change.
+
+Chromium is driven through its DevTools protocol with tornado's websocket client (tornado comes
+with meshcat; no extra dependency). Needs ``chromium`` (``apt-get install chromium``) or the path
+in ``FATIGUE_PIN_CHROMIUM``; without it the test fails, unless ``FATIGUE_PIN_SKIP_BROWSER=1``.
+``FATIGUE_PIN_SCREENSHOT_DIR=DIR`` keeps the screenshots for a look.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import json
+import os
+import shutil
+import subprocess
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fatigue_pin.replay import export_html
+from test_replay import make_run
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM_FLAGS = [
+    "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-quic",
+    "--no-first-run", "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--window-size=800,600", "--remote-debugging-port=0", "--remote-debugging-address=127.0.0.1",
+]
+
+
+def _chromium() -> str:
+    for candidate in (os.environ.get("FATIGUE_PIN_CHROMIUM"), "/usr/bin/chromium", shutil.which("chromium"),
+                      shutil.which("chromium-browser"), shutil.which("google-chrome")):
+        if candidate and Path(candidate).is_file():
+            return candidate
+    if os.environ.get("FATIGUE_PIN_SKIP_BROWSER") == "1":
+        pytest.skip("FATIGUE_PIN_SKIP_BROWSER=1")
+    pytest.fail("headless Chromium not found: install it (apt-get install chromium), set FATIGUE_PIN_CHROMIUM "
+                "to its path, or set FATIGUE_PIN_SKIP_BROWSER=1 to skip the browser tests")
+
+
+class _Page:
+    """A minimal DevTools-protocol client of one page: commands, and the errors the page reports."""
+
+    def __init__(self, ws: object) -> None:
+        self.ws = ws
+        self.next_id = 0
+        self.errors: list[str] = []
+        self.events: list[dict] = []
+
+    def _note(self, msg: dict) -> None:
+        method, p = msg.get("method"), msg.get("params", {})
+        self.events.append(msg)
+        if method == "Runtime.exceptionThrown":
+            d = p["exceptionDetails"]
+            self.errors.append(f"exception: {d.get('text')} {d.get('exception', {}).get('description', '')}")
+        elif method == "Runtime.consoleAPICalled" and p.get("type") == "error":
+            self.errors.append("console.error: " + " ".join(str(a.get("value", a.get("description"))) for a in p["args"]))
+        elif method == "Log.entryAdded" and p["entry"]["level"] == "error":
+            self.errors.append(f"log error ({p['entry'].get('source')}): {p['entry']['text']}")
+
+    async def call(self, method: str, timeout_s: float = 30.0, **params: object) -> dict:
+        self.next_id += 1
+        mid = self.next_id
+        await self.ws.write_message(json.dumps({"id": mid, "method": method, "params": params}))
+        deadline = time.monotonic() + timeout_s
+        while True:
+            raw = await asyncio.wait_for(self.ws.read_message(), max(0.1, deadline - time.monotonic()))
+            if raw is None:
+                raise RuntimeError("DevTools connection closed")
+            msg = json.loads(raw)
+            if msg.get("id") == mid:
+                if "error" in msg:
+                    raise RuntimeError(f"{method}: {msg['error']}")
+                return msg["result"]
+            self._note(msg)
+
+    async def js(self, expression: str) -> object:
+        res = await self.call("Runtime.evaluate", expression=expression, awaitPromise=True, returnByValue=True)
+        if "exceptionDetails" in res:
+            raise RuntimeError(f"{expression}: {res['exceptionDetails']}")
+        return res["result"].get("value")
+
+    async def wait_for(self, expression: str, timeout_s: float = 20.0) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not await self.js(expression):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"still false after {timeout_s} s: {expression}")
+            await asyncio.sleep(0.1)
+
+    async def screenshot_at(self, t: float, path: Path) -> np.ndarray:
+        """Pause the animation at ``t`` (s), let the viewer render, screenshot; returns RGB (h, w, 3)."""
+        import matplotlib.image
+
+        await self.js(f"viewer.animator.pause(); viewer.animator.seek({t}); viewer.set_dirty(); true")
+        await self.js("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+        shot = await self.call("Page.captureScreenshot", format="png")
+        path.write_bytes(base64.b64decode(shot["data"]))
+        return matplotlib.image.imread(path)[..., :3]
+
+
+def _marker_color(joint_half: str) -> str:
+    return f"viewer.scene_tree.find(['meshcat','fatigue_pin','fatigue','{joint_half}','<object>']).object.material.color.toArray()"
+
+
+async def _drive(chromium: str, html: Path, out: Path) -> dict:
+    from tornado.websocket import websocket_connect
+
+    profile = out / "profile"
+    proc = subprocess.Popen([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", "about:blank"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        port_file = profile / "DevToolsActivePort"
+        deadline = time.monotonic() + 30
+        while not (port_file.is_file() and port_file.read_text().strip()):
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"Chromium did not start its DevTools server (exit code {proc.poll()})")
+            await asyncio.sleep(0.05)
+        port = int(port_file.read_text().split()[0])
+        targets = json.loads(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10).read())
+        page_ws = next(t["webSocketDebuggerUrl"] for t in targets if t["type"] == "page")
+        ws = await websocket_connect(page_ws, max_message_size=64 * 2**20)
+        page = _Page(ws)
+        for domain in ("Page", "Runtime", "Log"):
+            await page.call(f"{domain}.enable")
+        await page.call("Page.navigate", url=html.as_uri())
+        await page.wait_for("typeof viewer !== 'undefined' && viewer.animator.duration > 0")
+        report = {
+            "duration": await page.js("viewer.animator.duration"),
+            "playing": await page.js("viewer.animator.playing"),
+            "label": await page.js("document.getElementById('fp-cycle').textContent"),
+        }
+        await asyncio.sleep(0.3)
+        report["time_after_0.3s"] = await page.js("viewer.animator.time")
+        report["first"] = await page.screenshot_at(0.0, out / "replay_t0.png")
+        report["color_first"] = await page.js(_marker_color("elbow_plus"))
+        report["middle"] = await page.screenshot_at(0.5, out / "replay_t0.5.png")
+        end = report["duration"] - 1e-3
+        report["last"] = await page.screenshot_at(end, out / "replay_end.png")
+        report["color_last"] = await page.js(_marker_color("elbow_plus"))
+        report["label_end"] = await page.js("new Promise(r => requestAnimationFrame(() => r(document.getElementById('fp-cycle').textContent)))")
+        await page.call("Runtime.evaluate", expression="0")  # collect late events
+        report["errors"] = page.errors
+        ws.close()
+        return report
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def _share(n: np.ndarray, mask: np.ndarray) -> float:
+    return float(mask.sum()) / mask.size
+
+
+def test_exported_replay_renders_and_animates(tmp_path: Path) -> None:
+    chromium = _chromium()
+    run = make_run(n_cycles=2)
+    html = export_html(run, tmp_path / "replay.html")
+    report = asyncio.run(_drive(chromium, html, tmp_path))
+    keep = os.environ.get("FATIGUE_PIN_SCREENSHOT_DIR")
+    if keep:
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        for png in tmp_path.glob("replay_*.png"):
+            shutil.copy(png, Path(keep) / png.name)
+
+    assert report["errors"] == [], report["errors"]
+    assert report["duration"] == pytest.approx(2.0)  # 2 cycles of 1 s, in real time
+    assert report["playing"] is True  # starts by itself
+    assert report["time_after_0.3s"] > 0.0
+    assert report["label"].startswith("cycle 1 of 2")
+    assert report["label_end"].startswith("cycle 2 of 2")
+
+    first, middle, last = report["first"], report["middle"], report["last"]
+    for img in (first, middle, last):
+        assert np.unique(img.reshape(-1, 3), axis=0).shape[0] > 1
+    assert np.abs(first - middle).mean() > 1e-3  # the arm moves
+    # The arm is in view: the green (unfatigued) segments and markers cover part of the picture.
+    r, g, b = first[..., 0], first[..., 1], first[..., 2]
+    assert _share(first, (g > 0.45) & (g > r + 0.15) & (g > b + 0.15)) > 0.005
+    # Fatigue shows: the elbow flexion marker turns from green to red over the two cycles
+    # (synthetic mf 0 -> 0.8), and red appears in the picture.
+    c0, c1 = np.array(report["color_first"]), np.array(report["color_last"])
+    assert c0[1] > c0[0] and c1[0] > c1[1], (c0, c1)
+    r, g, b = last[..., 0], last[..., 1], last[..., 2]
+    red_last = _share(last, (r > 0.6) & (r > g + 0.25) & (r > b + 0.25))
+    r, g, b = first[..., 0], first[..., 1], first[..., 2]
+    red_first = _share(first, (r > 0.6) & (r > g + 0.25) & (r > b + 0.25))
+    assert red_last > red_first + 1e-4

@@ -1,0 +1,140 @@
+"""Sliding-horizon runs: stitching, the window count rule, the file after every window, resume."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+from fatigue_pin.results import list_runs, read_run
+from fatigue_pin.sliding import SlidingHorizon, SlidingSettings, repetitions
+
+
+@pytest.fixture(scope="module")
+def runner(arm26, small_settings):
+    return SlidingHorizon(arm26, small_settings, SlidingSettings(window=3, advance=1, max_cycles=5))
+
+
+@pytest.fixture(scope="module")
+def full_run(runner, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sliding") / "run.h5"
+    return runner.run(out), out
+
+
+def test_window_count_rule(full_run):
+    run, _ = full_run
+    assert run.windows.shape == (3,)  # 5 cycles kept with a 3-cycle window advancing 1
+    assert run.windows["converged"].all()
+    assert list(run.windows["first_cycle"]) == [0, 1, 2]
+    assert run.n_cycles == 5 == repetitions(3, SlidingSettings())
+    assert run.q.shape == (5 * 10 + 1, 2) and run.tau_plus.shape == (50, 2)
+    assert repetitions(19, SlidingSettings()) == 21
+    assert repetitions(4, SlidingSettings(window=4, advance=2)) == 10
+
+
+def test_stitched_trajectory_is_continuous(full_run, runner):
+    run, _ = full_run
+    ocp = runner.ocp
+    L = ocp.layout
+    x = np.zeros((run.t.size, L.nx))
+    x[:, L.q], x[:, L.v] = run.q, run.qdot
+    for name, data in (("ma", run.ma), ("mr", run.mr), ("mf", run.mf)):
+        x[:, L.fatigue_index(name)] = data
+    u = np.hstack([run.tau_plus, run.tau_minus])
+    p = ocp.actuators.param_vector()
+    gaps = [np.max(np.abs(ocp.functions.step(x[k], u[k], p) - x[k + 1])) for k in range(u.shape[0])]
+    assert max(gaps) < 1e-6  # including across every window join
+    elbow = np.degrees(run.q[::5, 1])
+    assert np.allclose(elbow, np.tile([15, 150], 6)[:11], atol=1e-5)
+    mf = run.mf.max(axis=1)
+    assert mf[-1] > mf[10] > 0  # fatigue grows over the cycles
+
+
+def test_each_window_starts_from_the_previous_one(runner, small_settings):
+    """The window's guess repeats the previous window's second cycle, with continuous fatigue."""
+    ocp = runner.ocp
+    x0 = ocp.initial_state()
+    sol = ocp.solve(x_init=x0, x_end=x0)
+    x_init = sol.x[10]
+    gx, gu = runner.window_guess(x_init, sol.x, sol.u)
+    assert np.allclose(gu[:10], sol.u[10:20]) and np.allclose(gu[20:30], sol.u[10:20])
+    assert np.allclose(gx[0], x_init)
+    p = ocp.actuators.param_vector()
+    L = ocp.layout
+    for k in range(30):
+        assert np.allclose(ocp.functions.step(gx[k], gu[k], p)[L.m], gx[k + 1][L.m], atol=1e-12)
+
+
+def test_file_written_after_every_window_and_resume_equals_uninterrupted(full_run, runner, tmp_path):
+    reference, _ = full_run
+    out = tmp_path / "resumed.h5"
+    first = runner.run(out, stop_after=1)  # as if the run had been stopped after one window
+    assert read_run(out, first.name).windows.shape == (1,)
+    resumed = runner.run(out, resume=True)
+    assert resumed.windows.shape == reference.windows.shape
+    for name in ("q", "qdot", "tau_plus", "tau_minus", "ma", "mr", "mf", "cycle_costs"):
+        assert np.allclose(getattr(resumed, name), getattr(reference, name), atol=1e-9), name
+
+
+KILL_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    from fatigue_pin.model import load_model
+    from fatigue_pin.ocp import CyclicTask, OcpSettings
+    from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
+    from fatigue_pin.solver import SolverOptions
+    settings = OcpSettings(task=CyclicTask(intervals_per_cycle=10), substeps=2, solver=SolverOptions(compile=False))
+    runner = SlidingHorizon(load_model(), settings, SlidingSettings(max_cycles=int(sys.argv[2])))
+    runner.run(sys.argv[1], resume=True, progress=lambda line: print(line, flush=True))
+    """
+)
+
+
+def test_killed_run_keeps_finished_windows_and_resumes(full_run, tmp_path):
+    """SIGKILL a run after its first window; the file stays readable and a resumed run ends
+    with the uninterrupted result."""
+    reference, _ = full_run
+    out = tmp_path / "killed.h5"
+    script = tmp_path / "run.py"
+    script.write_text(KILL_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), str(out), "8"], stdout=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:  # wait for the first finished window
+            if line.startswith("window   0"):
+                break
+        deadline = time.time() + 60
+        while not out.exists() and time.time() < deadline:
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=60)
+    name = list_runs(out)[0]
+    partial = read_run(out, name)
+    assert 1 <= partial.windows.shape[0] < 6
+    subprocess.run([sys.executable, str(script), str(out), "5"], check=True, capture_output=True)
+    resumed = read_run(out, name)
+    assert np.allclose(resumed.q, reference.q, atol=1e-9) and np.allclose(resumed.mf, reference.mf, atol=1e-9)
+
+
+def test_resume_refuses_other_settings(full_run, arm26, small_settings):
+    from fatigue_pin.results import ResultFileError
+
+    _, out = full_run
+    other = SlidingHorizon(arm26, small_settings.with_(cost="torque"), SlidingSettings(max_cycles=5))
+    with pytest.raises(ResultFileError, match="cost"):
+        other.run(out, name=read_run(out).name, resume=True)
+
+
+def test_bad_sliding_settings():
+    from fatigue_pin.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="advance"):
+        SlidingSettings(window=3, advance=4)
+    with pytest.raises(ParameterError, match="max_cycles"):
+        SlidingSettings(window=3, max_cycles=2)
