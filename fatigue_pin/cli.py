@@ -74,6 +74,43 @@ def _cmd_max_cycles(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from fatigue_pin.reproduce import demo
+
+    demo(args.out, progress=_say, max_cycles=args.max_cycles)
+    return 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from fatigue_pin.reproduce import reproduce
+
+    reproduce(args.out, preset=args.preset, quick=args.quick, jobs=args.jobs, progress=_say)
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from fatigue_pin.replay import export_html, serve
+    from fatigue_pin.results import ResultFileError, read_run
+
+    run = read_run(args.file, args.run)
+    if args.cycle is not None and not 1 <= args.cycle <= run.n_cycles:
+        raise ResultFileError(f"--cycle {args.cycle}: run {run.name!r} has cycles 1 to {run.n_cycles}")
+    cycles = None if args.cycle is None else [args.cycle - 1]
+    if args.html:
+        print(f"wrote {export_html(run, args.html, cycles)} (open it in a browser)")
+        return 0
+    serve(run, cycle=None if cycles is None else cycles[0], open_browser=args.open)
+    return 0
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from fatigue_pin.plots import plot_file
+
+    for path in plot_file(args.file, args.out):
+        print(f"wrote {path}")
+    return 0
+
+
 def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cost", default="fatigue-torque", choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
     p.add_argument("--stabilization", "-S", type=float, default=10.0, help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
@@ -111,10 +148,35 @@ def build_parser() -> argparse.ArgumentParser:
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_solve)
 
+    p = sub.add_parser("demo", help="solve the sliding-horizon curl to exhaustion; write HDF5, figures and a replay")
+    p.add_argument("--out", type=Path, default=Path("results/demo"), help="output folder (default results/demo)")
+    p.add_argument("--max-cycles", type=int, default=None, help="stop after this many cycles (default: exhaustion)")
+    p.set_defaults(func=_cmd_demo)
+
+    p = sub.add_parser("reproduce", help="run the paper's whole study and write report.md beside the results")
+    p.add_argument("--out", type=Path, default=Path("results/reproduce"), help="output folder")
+    p.add_argument("--preset", default="paper", choices=["paper", "authors-code"])
+    p.add_argument("--quick", action="store_true", help="a subset that finishes in a few minutes")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the number of cores)")
+    p.set_defaults(func=_cmd_reproduce)
+
     p = sub.add_parser("max-cycles", help="largest number of cycles the full-horizon OCP converges for")
     p.add_argument("--n-max", type=int, default=64, help="largest N tried")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_max_cycles)
+
+    p = sub.add_parser("replay", help="replay a run in the browser (meshcat, local only) or write it as one HTML file")
+    p.add_argument("file", type=Path, help="HDF5 result file")
+    p.add_argument("--run", default=None, help="run name in the file (needed when it holds several)")
+    p.add_argument("--cycle", type=int, default=None, help="play only this cycle (1 = first; default: all)")
+    p.add_argument("--html", type=Path, default=None, help="write a self-contained HTML replay here and exit")
+    p.add_argument("--open", action="store_true", help="open the served page in the default browser")
+    p.set_defaults(func=_cmd_replay)
+
+    p = sub.add_parser("plot", help="write every figure of a result file (OCP runs or forward studies), PNG and PDF")
+    p.add_argument("file", type=Path, help="HDF5 result file")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.set_defaults(func=_cmd_plot)
 
     return parser
 

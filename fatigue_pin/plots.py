@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
@@ -25,6 +26,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from fatigue_pin.results import ResultFileError, RunResult, list_runs, read_run, read_search
+
+if TYPE_CHECKING:
+    from fatigue_pin.forward import ForwardStudiesResult
 
 #: Colours of the fatigue compartments (as in the forward-study figures).
 STATE_COLORS = {"ma": "#00cc96", "mr": "#ffa15a", "mf": "#ef553b"}
@@ -299,7 +303,7 @@ def _png_as_pdf(png: Path) -> Path:
     return pdf
 
 
-def read_forward_studies(path: Path):  # -> fatigue_pin.forward.ForwardStudiesResult
+def read_forward_studies(path: Path) -> ForwardStudiesResult:
     """Rebuild the in-memory forward-study results from ``forward_studies.h5`` (layout: docs/results.md)."""
     from fatigue_pin.fatigue import FatigueParams, FatigueTrajectory
     from fatigue_pin.forward import ForwardStudiesResult, ForwardStudyConfig, Study2Run

@@ -28,6 +28,7 @@ arguments of the functions are 0-based indices like :meth:`RunResult.cycle_slice
 from __future__ import annotations
 
 import base64
+import html
 import json
 import os
 import subprocess
@@ -188,19 +189,22 @@ class ReplayScene:
     Attributes:
         run_name: the run.
         cycles: the 0-based cycles animated, in play order.
-        fps: frames per second of the animation (one frame per node: 50 for nodes every 0.02 s).
-        n_frames: number of frames.
-        cycle_start_s: start time (s) of each animated cycle in the animation, (len(cycles),).
+        fps: frame rate of the meshcat clip (frames per second).
+        n_frames: number of frames (one per node; consecutive cycles share their boundary node).
+        frame_times_s: time of every frame in the animation (s), (n_frames,): the nodes' times,
+            so the animation plays in real time.
+        cycle_frames: (first, last) frame index of each animated cycle, both included.
         visualizer: ``meshcat.Visualizer`` whose window records the commands.
         animation: the ``meshcat.animation.Animation`` (poses and colours of every frame).
-        frame_paths: per frame, the meshcat path -> placement (4 x 4) and path -> RGB dictionaries.
+        frames: per frame, the meshcat path -> placement (4 x 4) and path -> RGB dictionaries.
     """
 
     run_name: str
     cycles: list[int]
     fps: int
     n_frames: int
-    cycle_start_s: np.ndarray
+    frame_times_s: np.ndarray
+    cycle_frames: list[tuple[int, int]]
     visualizer: Any
     animation: Any
     frames: list[tuple[dict[str, np.ndarray], dict[str, np.ndarray]]] = field(repr=False)
@@ -208,7 +212,12 @@ class ReplayScene:
     @property
     def duration_s(self) -> float:
         """Length of the animation (s)."""
-        return (self.n_frames - 1) / self.fps
+        return float(self.frame_times_s[-1])
+
+    @property
+    def cycle_start_s(self) -> np.ndarray:
+        """Start time (s) of each animated cycle in the animation, (len(cycles),)."""
+        return self.frame_times_s[[first for first, _ in self.cycle_frames]]
 
     @property
     def scene_commands(self) -> list[Any]:
@@ -251,16 +260,27 @@ def _select_cycles(run: RunResult, cycles: Sequence[int] | None) -> list[int]:
     return chosen
 
 
-def _frame_nodes(run: RunResult, cycles: list[int]) -> np.ndarray:
-    """Node indices of the frames: each cycle's nodes, the shared node between consecutive cycles once."""
+def _frame_nodes(run: RunResult, cycles: list[int]) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """Node index and time (s) of every frame, and the (first, last) frame of each cycle: each
+    cycle's nodes in turn, the boundary node of two consecutive cycles once; a jump between
+    non-consecutive cycles takes one interval."""
     nodes: list[int] = []
+    times: list[float] = []
+    spans: list[tuple[int, int]] = []
     for c in cycles:
         s = run.cycle_slice(c)
         idx = list(range(s.start, s.stop))
+        t = list(run.t[s] - run.t[s.start] + (times[-1] if times else 0.0))
         if nodes and nodes[-1] == idx[0]:
-            idx = idx[1:]
+            idx, t = idx[1:], t[1:]
+            spans.append((len(nodes) - 1, len(nodes) + len(idx) - 1))
+        else:
+            if times:
+                t = [v + float(run.t[s.start + 1] - run.t[s.start]) for v in t]
+            spans.append((len(nodes), len(nodes) + len(idx) - 1))
         nodes.extend(idx)
-    return np.asarray(nodes)
+        times.extend(t)
+    return np.asarray(nodes), np.asarray(times), spans
 
 
 def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 50) -> ReplayScene:
@@ -269,7 +289,8 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
     Args:
         run: an OCP run; its ``urdf`` attribute gives the model (bundled arm26 if empty).
         cycles: 0-based cycles to animate, in play order (default: all).
-        fps: frames per second; 50 plays nodes spaced 0.02 s in real time.
+        fps: frame rate of the meshcat clip; keys sit at the nodes' times (every 0.02 s in the
+            paper's task), so the playback is in real time whatever the rate.
 
     Returns:
         The recorded scene; nothing is sent anywhere (see :func:`export_html`, :func:`serve`).
@@ -281,7 +302,7 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
 
     chosen = _select_cycles(run, cycles)
     kin = _kinematics(run)
-    nodes = _frame_nodes(run, chosen)
+    nodes, times, spans = _frame_nodes(run, chosen)
     frames = [(_poses(kin, run.q[k]), _colors(kin, run.mf[k])) for k in nodes]
 
     vis = meshcat.Visualizer(window=_Recorder())
@@ -302,16 +323,14 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
     _set_camera(vis, *_camera_for(frames))
 
     anim = Animation(default_framerate=fps)
-    for k, (poses, colors) in enumerate(frames):
-        with anim.at_frame(vis, k) as frame:
+    for t, (poses, colors) in zip(times, frames):
+        with anim.at_frame(vis, float(t * fps)) as frame:
             for path, T in poses.items():
                 frame[path].set_transform(T)
             for path, rgb in colors.items():
                 frame[path]["<object>"].set_property("material.color", "color", [float(v) for v in rgb])
 
-    per_cycle = run.intervals_per_cycle
-    starts = np.array([i * per_cycle for i in range(len(chosen))], dtype=float) / fps
-    return ReplayScene(run.name, chosen, fps, len(frames), starts, vis, anim, frames)
+    return ReplayScene(run.name, chosen, fps, len(frames), times, spans, vis, anim, frames)
 
 
 # -- static HTML ---------------------------------------------------------------------------------
@@ -322,8 +341,7 @@ _OVERLAY = """
   <div><b id="fp-title"></b></div>
   <div id="fp-cycle" style="font-size:20px;margin:2px 0"></div>
   <div style="display:flex;align-items:center;gap:6px">mf 0
-    <span style="display:inline-block;width:120px;height:10px;
-      background:linear-gradient(to right,rgb(38,179,64),rgb(250,204,26),rgb(217,26,26))"></span> 1</div>
+    <span style="display:inline-block;width:120px;height:10px;background:linear-gradient(to right,__SCALE__)"></span> 1</div>
   <div style="font-size:11px">spheres: flexion (front) / extension (back) half of each joint;<br>
     segments: the more fatigued half of their joint</div>
 </div>
@@ -371,15 +389,16 @@ def scene_html(scene: ReplayScene, n_cycles: int, loop: bool = True) -> str:
         "n_cycles": n_cycles,
         "starts": [float(s) for s in scene.cycle_start_s],
     }
-    player = _PLAYER_JS.replace("__META__", json.dumps(meta)).replace(
+    player = _PLAYER_JS.replace("__META__", json.dumps(meta).replace("</", "<\\/")).replace(
         "__COMMANDS__", json.dumps([_packed(c) for c in commands])
     )
+    scale = ",".join("rgb({},{},{})".format(*(round(255 * v) for v in rgb)) for rgb in FATIGUE_COLORS)
     return (
         "<!DOCTYPE html>\n<html>\n<head><meta charset=\"utf-8\"><title>"
-        + meta["title"]
+        + html.escape(meta["title"])
         + "</title>\n<style>body{margin:0} #meshcat-pane{width:100vw;height:100vh;overflow:hidden}</style>\n</head>\n<body>\n"
         + '<div id="meshcat-pane"></div>\n'
-        + _OVERLAY
+        + _OVERLAY.replace("__SCALE__", scale)
         + "<script>\n"
         + js_path.read_text()
         + "\n</script>\n<script>\n"
@@ -493,19 +512,24 @@ def play_frames(vis: Any, scene: ReplayScene, cycles: Sequence[int] | None = Non
                 say: Callable[[str], object] = print) -> None:
     """Send the frames of ``cycles`` (0-based, among ``scene.cycles``; default: all) to a live
     viewer in real time, printing each cycle's number as it starts."""
-    per_cycle = (scene.n_frames - 1) // len(scene.cycles)
+    sent: dict[str, tuple[int, ...]] = {}  # colours as 8-bit RGB: send only changes (the server keeps every property)
     t0 = time.monotonic()
-    k = 0
+    elapsed = 0.0
     for c in scene.cycles if cycles is None else cycles:
         i = scene.cycles.index(c)
         say(f"cycle {c + 1}")
-        for poses, colors in scene.frames[i * per_cycle: (i + 1) * per_cycle + 1]:
+        first, last = scene.cycle_frames[i]
+        times = scene.frame_times_s[first: last + 1] - scene.frame_times_s[first]
+        for dt, (poses, colors) in zip(np.diff(times, prepend=0.0), scene.frames[first: last + 1]):
             for path, T in poses.items():
                 vis[path].set_transform(T)
             for path, rgb in colors.items():
-                vis[path].set_property("color", [*map(float, rgb), 1.0])
-            k += 1
-            delay = t0 + k / scene.fps - time.monotonic()
+                rgb8 = tuple(int(round(v * 255)) for v in rgb)
+                if sent.get(path) != rgb8:
+                    sent[path] = rgb8
+                    vis[path].set_property("color", [v / 255 for v in rgb8] + [1.0])
+            elapsed += dt
+            delay = t0 + elapsed - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
 
@@ -556,9 +580,12 @@ def serve(
             vis.wait()
         for command in scene.scene_commands:
             vis.window.send(command)
-        while True:
-            play_frames(vis, scene, selection)
-            answer = _ask_cycle(run, input_fn)
-            if answer is None:
-                return
-            selection = answer or selection
+        try:
+            while True:
+                play_frames(vis, scene, selection)
+                answer = _ask_cycle(run, input_fn)
+                if answer is None:
+                    return
+                selection = answer or selection
+        except KeyboardInterrupt:
+            print()

@@ -90,8 +90,14 @@ def test_build_animation_frames_and_tracks(run: RunResult) -> None:
     assert color.values[-1][0] > color.values[-1][1]  # mf = 0.8: red dominates
     assert "/meshcat/fatigue_pin/visuals/dumbbell_0/<object>" not in clips  # keeps its colour
 
+    assert scene.cycle_frames == [(0, 50), (50, 100)]
+
     one = build_animation(run, cycles=[1])
-    assert one.n_frames == 51 and one.cycles == [1]
+    assert one.n_frames == 51 and one.cycles == [1] and one.duration_s == pytest.approx(1.0)
+    back = build_animation(run, cycles=[1, 0])  # not consecutive: the jump back takes one interval
+    assert back.n_frames == 102 and back.cycle_frames == [(0, 50), (51, 101)]
+    np.testing.assert_allclose(back.cycle_start_s, [0.0, 1.02])
+    assert np.all(np.diff(back.frame_times_s) > 0)
     with pytest.raises(ResultFileError, match="out of range"):
         build_animation(run, cycles=[2])
 
