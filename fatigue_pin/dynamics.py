@@ -20,6 +20,8 @@ from __future__ import annotations
 import casadi as ca
 import pinocchio as pin
 
+from fatigue_pin.errors import ModelError
+
 
 def backend_name() -> str:
     """Name of the back end used to build the CasADi dynamics."""
@@ -40,5 +42,57 @@ def casadi_dynamics(model: pin.Model) -> tuple[ca.Function, ca.Function]:
     Returns:
         ``aba`` with inputs ``q`` (nq), ``v`` (nv), ``tau`` (nv) and output ``ddq`` (nv), and
         ``rnea`` with inputs ``q``, ``v``, ``a`` and output ``tau``.
+
+    Raises:
+        ModelError: neither ``pinocchio.casadi`` nor the compiled extension is available, or the
+            extension was built against other casadi/Pinocchio versions than the ones imported.
     """
-    raise NotImplementedError("casadi_dynamics: bridge not built yet")
+    try:
+        import pinocchio.casadi as cpin
+    except ImportError:
+        return _extension_dynamics(model)
+    return _pinocchio_casadi_dynamics(cpin, model)
+
+
+def _pinocchio_casadi_dynamics(cpin, model: pin.Model) -> tuple[ca.Function, ca.Function]:
+    """Same functions through Pinocchio's own Python bindings on casadi (conda-forge builds)."""
+    cmodel = cpin.Model(model)
+    cdata = cmodel.createData()
+    q = ca.SX.sym("q", model.nq)
+    v = ca.SX.sym("v", model.nv)
+    tau = ca.SX.sym("tau", model.nv)
+    a = ca.SX.sym("a", model.nv)
+    ddq = cpin.aba(cmodel, cdata, q, v, tau)
+    aba = ca.Function("aba", [q, v, tau], [ddq], ["q", "v", "tau"], ["ddq"])
+    tau_out = cpin.rnea(cmodel, cdata, q, v, a)
+    rnea = ca.Function("rnea", [q, v, a], [tau_out], ["q", "v", "a"], ["tau"])
+    return aba, rnea
+
+
+def _extension_dynamics(model: pin.Model) -> tuple[ca.Function, ca.Function]:
+    """Same functions through the compiled extension (PyPI wheels without ``pinocchio.casadi``).
+
+    The model crosses to C++ as Pinocchio's text serialization, so everything in it (inertias,
+    placements, joint types, gravity) is reproduced exactly; the functions come back serialized.
+    """
+    # casadi and pinocchio are imported above this point, which also loads libcasadi and
+    # libboost_serialization for the extension if its RPATH cannot find them.
+    try:
+        from fatigue_pin import _pinocchio_casadi as ext
+    except ImportError as exc:
+        raise ModelError(
+            "the compiled extension fatigue_pin._pinocchio_casadi is missing or cannot be loaded "
+            f"({exc}); install fatigue_pin with pip (`pip install .` or `pip install -e .`) so "
+            "that it is built, or use a Pinocchio build that has pinocchio.casadi"
+        ) from exc
+    for name, built, running in (
+        ("casadi", ext.casadi_version, ca.__version__),
+        ("pinocchio", ext.pinocchio_version, pin.__version__),
+    ):
+        if built != running:
+            raise ModelError(
+                f"fatigue_pin._pinocchio_casadi was built against {name} {built} but {name} "
+                f"{running} is imported; reinstall fatigue_pin with pip to rebuild it"
+            )
+    aba_text, rnea_text = ext.dynamics_from_string(model.saveToString())
+    return ca.Function.deserialize(aba_text), ca.Function.deserialize(rnea_text)

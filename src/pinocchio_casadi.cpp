@@ -1,0 +1,46 @@
+// fatigue_pin._pinocchio_casadi: Pinocchio's ABA and RNEA on casadi::SX, for Pinocchio builds
+// (the PyPI `pin` wheels) that lack the `pinocchio.casadi` Python module.
+//
+// Python hands over the model as Pinocchio's own text serialization (`model.saveToString()`, a
+// boost text archive), so every model built in Python, gravity included, is reproduced exactly.
+// The symbolic functions come back as strings for `casadi.Function.deserialize`, which keeps
+// CasADi objects out of the C++/Python boundary (the build-time and run-time casadi versions
+// must match; both are pinned).
+#include <string>
+#include <utility>
+
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+
+#include <casadi/config.h>
+
+#include "pinocchio/config.hpp"
+#include "pinocchio/multibody.hpp"
+#include "pinocchio/serialization.hpp"
+
+#include "pinocchio_casadi.hpp"
+
+namespace nb = nanobind;
+
+namespace
+{
+  std::pair<std::string, std::string> dynamics_from_string(const std::string & model_text)
+  {
+    pinocchio::Model model;
+    model.loadFromString(model_text); // throws boost::archive::archive_exception on bad input
+    return fatigue_pin::serialized_sx_dynamics(model);
+  }
+} // namespace
+
+NB_MODULE(_pinocchio_casadi, m)
+{
+  m.doc() = "Pinocchio's ABA and RNEA on casadi::SX, returned as serialized casadi Functions.";
+  m.attr("casadi_version") = CASADI_VERSION_STRING;
+  m.attr("pinocchio_version") = PINOCCHIO_VERSION;
+  m.def(
+    "dynamics_from_string", &dynamics_from_string, nb::arg("model_text"),
+    "Build (aba, rnea) for a model given as `pinocchio.Model.saveToString()`.\n\n"
+    "Returns two strings for `casadi.Function.deserialize`: aba(q, v, tau) -> ddq and\n"
+    "rnea(q, v, a) -> tau.");
+}
