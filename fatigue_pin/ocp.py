@@ -222,8 +222,10 @@ class OcpSettings:
             +- end_tolerance * (their bound range) (0.01 in the sliding windows).
         expand: integrate the rigid body as one expanded SX function per interval instead of MX
             calls of the SX dynamics (much longer compile, slower; kept for comparisons).
-        parallel: how the interval functions are mapped over the horizon: ``serial``,
-            ``openmp`` (compiled code on every core) or ``auto`` (openmp when compiled).
+        parallel: how the interval functions are mapped over the horizon: ``serial``, ``thread``
+            (CasADi's virtual machine on every core; not in generated code) or ``openmp`` (only
+            with a CasADi built with OpenMP; the PyPI wheel is not, and falls back to serial).
+            ``auto``: serial.
         solver: IPOPT settings.
     """
 
@@ -475,7 +477,7 @@ class FatigueOcp:
 
         # Dynamics: multiple-shooting gaps, one mapped RK4 interval function.
         ny, nv = layout.nq + layout.nv, layout.nv
-        mode = settings.parallel if settings.parallel != "auto" else ("openmp" if settings.solver.compile else "serial")
+        mode = "serial" if settings.parallel == "auto" else settings.parallel
         par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
         opti.subject_to(T == U[:nv, :] + U[nv:, :])
         opti.subject_to(X[:ny, 1:] == fn.F_rb.map(N, *par)(X[:ny, :N], T))
