@@ -18,6 +18,7 @@ Both return functions with the signatures
 from __future__ import annotations
 
 import casadi as ca
+import numpy as np
 import pinocchio as pin
 
 from fatigue_pin.errors import ModelError
@@ -47,11 +48,52 @@ def casadi_dynamics(model: pin.Model) -> tuple[ca.Function, ca.Function]:
         ModelError: neither ``pinocchio.casadi`` nor the compiled extension is available, or the
             extension was built against other casadi/Pinocchio versions than the ones imported.
     """
+    model = aligned_model(model)
     try:
         import pinocchio.casadi as cpin
     except ImportError:
         return _extension_dynamics(model)
     return _pinocchio_casadi_dynamics(cpin, model)
+
+
+_UNALIGNED = {"JointModelRevoluteUnaligned": pin.JointModelRZ, "JointModelPrismaticUnaligned": pin.JointModelPZ}
+
+
+def aligned_model(model: pin.Model) -> pin.Model:
+    """An exactly equivalent model whose unaligned revolute/prismatic joints act along z.
+
+    A joint about an arbitrary unit axis ``a`` makes Pinocchio's algorithms work with general
+    rotations; on ``casadi::SX`` that costs many operations (arm26's ABA: 915, against 108 with
+    z-aligned joints). Here the body frame B of every such joint is replaced by B' = B R with
+    R e_z = a. Then B'(q) = P R exp(q e_z^) = P exp(q a^) R: the same motion for the same q, with a
+    ``JointModelRZ``/``PZ``. Inertias and child joint placements are re-expressed in B'. Velocities,
+    accelerations and torques are joint-space quantities, so ABA and RNEA of both models are
+    equal (tests/test_dynamics.py checks them against ``pinocchio.aba`` of the original).
+    Operational frames and geometry are not copied: the result serves the dynamics only.
+    """
+    if all(model.joints[i].shortname() not in _UNALIGNED for i in range(1, model.njoints)):
+        return model
+    out = pin.Model()
+    out.name = model.name
+    out.gravity = model.gravity
+    turn = [pin.SE3.Identity() for _ in range(model.njoints)]  # old body frame -> new body frame
+    for i in range(1, model.njoints):
+        joint, parent = model.joints[i], model.parents[i]
+        placement = turn[parent].actInv(model.jointPlacements[i])
+        kind = joint.shortname()
+        if kind in _UNALIGNED:
+            axis = np.asarray(joint.extract().axis, dtype=float)
+            R = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), axis / np.linalg.norm(axis)).matrix()
+            turn[i] = pin.SE3(R, np.zeros(3))
+            placement = placement * turn[i]
+            joint_model = _UNALIGNED[kind]()
+        else:
+            joint_model = joint.extract()
+        jid = out.addJoint(parent, joint_model, placement, model.names[i])
+        out.appendBodyToJoint(jid, turn[i].actInv(model.inertias[i]), pin.SE3.Identity())
+    out.lowerPositionLimit, out.upperPositionLimit = model.lowerPositionLimit, model.upperPositionLimit
+    out.velocityLimit, out.effortLimit = model.velocityLimit, model.effortLimit
+    return out
 
 
 def _pinocchio_casadi_dynamics(cpin, model: pin.Model) -> tuple[ca.Function, ca.Function]:
