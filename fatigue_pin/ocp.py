@@ -51,7 +51,7 @@ import numpy as np
 
 from fatigue_pin.actuators import SignedTorqueActuators
 from fatigue_pin.errors import ParameterError, TaskError
-from fatigue_pin.fatigue import FatigueParams, check_stabiliser
+from fatigue_pin.fatigue import FatigueParams
 from fatigue_pin.model import RobotModel
 from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions
 

@@ -21,8 +21,7 @@ run (the guess of a window only depends on the previous window's stored solution
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import fatigue_pin.full as full
 from fatigue_pin.full import extend_guess, max_repetitions, solution_to_run

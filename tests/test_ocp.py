@@ -22,7 +22,7 @@ def solved_one_cycle(arm26):
 def check_solution(ocp: FatigueOcp, sol, gap_tol: float = 1e-6) -> None:
     """Assert that ``sol`` satisfies every part of the formulation."""
     assert sol.success, sol.status
-    L, model, task = ocp.layout, ocp.model, ocp.task
+    model, task = ocp.model, ocp.task
     elbow = model.joint_names.index(task.joint)
     for node, angle in task.targets(ocp.n_intervals):
         assert sol.q[node, elbow] == pytest.approx(angle, abs=1e-6)
