@@ -235,6 +235,8 @@ class SlidingHorizon:
             solved += 1
             index = len(state.windows) if state is not None else 0
             row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
+            wall = np.zeros(K)  # a window's solve time goes to the A cycles it keeps
+            wall[:A] = sol.wall_time_s / A
             mf_end = sol.fatigue("mf")[A * n]
             progress(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
                      f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
@@ -244,9 +246,7 @@ class SlidingHorizon:
                     state = _State(np.zeros((0, ocp.layout.nx)), np.zeros((0, ocp.layout.nu)), np.zeros((0, sol.cycle_costs.shape[1])),
                                    np.zeros(0), [row], True)
                 else:
-                    state = _State(sol.x, sol.u, sol.cycle_costs, np.full(K, sol.wall_time_s / K), [row], False)
-                    state.cycle_wall[:A] = sol.wall_time_s / A
-                    state.cycle_wall[A:] = 0.0
+                    state = _State(sol.x, sol.u, sol.cycle_costs, wall, [row], False)
             elif not sol.success:
                 state.windows.append(row)
                 state.done = True
@@ -257,8 +257,6 @@ class SlidingHorizon:
                 state.x = np.vstack([state.x[: keep_nodes - 1], sol.x])
                 state.u = np.vstack([state.u[:keep_int], sol.u])
                 state.costs = np.vstack([state.costs[:keep_cyc], sol.cycle_costs])
-                wall = np.zeros(K)
-                wall[:A] = sol.wall_time_s / A
                 state.cycle_wall = np.concatenate([state.cycle_wall[:keep_cyc], wall])
                 state.windows.append(row)
             if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
