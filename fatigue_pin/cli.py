@@ -31,8 +31,10 @@ def _ocp_settings(args: argparse.Namespace, n_cycles: int = 1):
     from fatigue_pin.ocp import OcpSettings
     from fatigue_pin.solver import SolverOptions
 
-    solver = SolverOptions(linear_solver=args.linear_solver, compile=not args.no_compile, print_level=args.print_level)
-    return OcpSettings(n_cycles=n_cycles, cost=args.cost, preset=args.preset, S=args.stabilization, solver=solver)
+    solver = SolverOptions(linear_solver=args.linear_solver, compile=not args.no_compile, print_level=args.print_level,
+                           max_iter=args.max_iter)
+    return OcpSettings(n_cycles=n_cycles, cost=args.cost, preset=args.preset, S=args.stabilization, guess=args.guess,
+                       solver=solver)
 
 
 def _say(line: str) -> None:
@@ -115,7 +117,10 @@ def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cost", default="fatigue-torque", choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
     p.add_argument("--stabilization", "-S", type=float, default=10.0, help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
     p.add_argument("--preset", default="paper", choices=["paper", "authors-code"], help="values of the paper text or the authors' code")
+    p.add_argument("--guess", default="rest", choices=["rest", "physical"],
+                   help="initial guess: the initial state everywhere with zero torque (the paper's), or a physical cosine curl")
     p.add_argument("--linear-solver", default="mumps", help="IPOPT linear solver (default mumps)")
+    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration limit per solve (default 3000)")
     p.add_argument("--no-compile", action="store_true", help="evaluate the NLP without generating and compiling C")
     p.add_argument("--print-level", type=int, default=0, help="IPOPT print level")
     p.add_argument("--urdf", type=Path, default=None, help="URDF file (default: bundled arm26)")

@@ -3,7 +3,7 @@
 The paper raised the number of cycles N one at a time until IPOPT failed. :func:`max_repetitions`
 gallops instead (N = 1, 2, 4, ... until a failure), then bisects between the largest success and
 the smallest failure, each solve warm-started from the nearest converged solution with fewer
-cycles (extended by repeating its last cycle, fatigue integrated forward). Every N tried is
+cycles, stretched in time (:func:`resample_guess`). Every N tried is
 reported. Like the paper's search it assumes that convergence is monotone in N.
 """
 
@@ -110,21 +110,24 @@ def default_run_name(settings: OcpSettings, horizon: str) -> str:
     return f"{horizon}/{settings.cost}_S{settings.S:g}"
 
 
-def extend_guess(ocp: FatigueOcp, previous: OcpSolution) -> tuple[np.ndarray, np.ndarray]:
-    """Initial guess for ``ocp`` from a solution with a different number of cycles.
+def resample_guess(ocp: FatigueOcp, previous: OcpSolution) -> tuple[np.ndarray, np.ndarray]:
+    """Initial guess for ``ocp`` from a solution with another number of cycles, stretched in time.
 
-    Cycles the previous solution has are reused; further cycles repeat its last cycle's q,
-    qdot and controls; the fatigue states are integrated forward from the controls.
+    Cycle c of the new horizon (N_new cycles) copies cycle floor(c * N_prev / N_new) of the
+    previous solution, states and controls alike, and the last node copies the last node. The
+    fatigue trajectory is thus stretched over the new horizon (its gaps are not closed), so the
+    guess keeps the previous solution's pacing: exhausted at the end, not half way. Measured on
+    arm26 (authors-code, fatigue-torque, S = 10), 16 cycles from the 8-cycle solution: 74 IPOPT
+    iterations, against 114 from the rest guess and 109 when the fatigue is integrated forward
+    from the copied controls instead.
     """
     n = ocp.task.intervals_per_cycle
-    N = ocp.n_intervals
-    prev_cycles = previous.u.shape[0] // n
-    idx_u = np.array([k if k < prev_cycles * n else (prev_cycles - 1) * n + k % n for k in range(N)])
-    idx_x = np.append(idx_u, idx_u[-1] + 1)
-    u = previous.u[idx_u]
-    q, qdot = previous.q[idx_x], previous.qdot[idx_x]
-    x = ocp.rollout_fatigue(ocp.initial_state(), q, qdot, u)
-    return x, u
+    n_new = ocp.settings.n_cycles
+    n_prev = previous.u.shape[0] // n
+    src_cycle = (np.arange(n_new) * n_prev) // n_new
+    idx_u = (src_cycle[:, None] * n + np.arange(n)[None, :]).reshape(-1)
+    idx_x = np.append(idx_u, previous.u.shape[0])
+    return previous.x[idx_x].copy(), previous.u[idx_u].copy()
 
 
 def solve_full(model: RobotModel, settings: OcpSettings, progress: Progress = _quiet) -> tuple[FatigueOcp, OcpSolution]:
@@ -176,7 +179,7 @@ def max_repetitions(
     def attempt(n: int) -> bool:
         ocp = FatigueOcp(model, settings.with_(n_cycles=n))
         done = [k for k in solutions if k <= n]
-        guess = extend_guess(ocp, solutions[max(done)][1]) if done else None
+        guess = resample_guess(ocp, solutions[max(done)][1]) if done else None
         sol = ocp.solve(guess=guess)
         row = {"n_cycles": n, "converged": sol.success, "status": sol.status, "iterations": sol.iterations,
                "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s}

@@ -53,7 +53,7 @@ from fatigue_pin.actuators import SignedTorqueActuators
 from fatigue_pin.errors import ParameterError, TaskError
 from fatigue_pin.fatigue import FatigueParams
 from fatigue_pin.model import RobotModel
-from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions
+from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions, openmp_fallback_quiet
 
 #: Names of the cost terms, in the order of :attr:`CostWeights.vector` and of ``cycle_costs``.
 COST_TERMS = ("posture", "torque_rate", "fatigue", "torque")
@@ -204,6 +204,10 @@ class CyclicTask:
         return pairs
 
 
+#: initial-guess strategies of :class:`OcpSettings`
+GUESSES = ("rest", "physical")
+
+
 @dataclass(frozen=True)
 class OcpSettings:
     """Everything that defines one fatigue OCP; the defaults are the paper's.
@@ -223,9 +227,15 @@ class OcpSettings:
         expand: integrate the rigid body as one expanded SX function per interval instead of MX
             calls of the SX dynamics (much longer compile, slower; kept for comparisons).
         parallel: how the interval functions are mapped over the horizon: ``serial``, ``thread``
-            (CasADi's virtual machine on every core; not in generated code) or ``openmp`` (only
-            with a CasADi built with OpenMP; the PyPI wheel is not, and falls back to serial).
-            ``auto``: serial.
+            (CasADi's virtual machine on every core; no gain in generated code) or ``openmp`` (the
+            generated C of a compiled NLP is built with ``-fopenmp`` and evaluates the intervals on
+            ``OMP_NUM_THREADS`` cores; CasADi's own virtual machine, without OpenMP in the PyPI
+            wheel, evaluates serially). ``auto``: ``openmp`` when compiled, else ``serial``.
+        guess: default initial guess of a solve: ``rest`` (the paper's: the initial state at every
+            node, zero torque) or ``physical`` (the task joint on a cosine, inverse-dynamics torques,
+            fatigue integrated from them).
+        scaling: IPOPT works on scaled variables: joint velocities divided by their bound,
+            torques by their limit (fewer iterations, same solution).
         solver: IPOPT settings.
     """
 
@@ -239,6 +249,8 @@ class OcpSettings:
     substeps: int = 5
     end_tolerance: float | None = None
     expand: bool = False
+    scaling: bool = True
+    guess: str = "rest"
     parallel: str = "auto"
     solver: SolverOptions = field(default_factory=SolverOptions)
 
@@ -253,10 +265,20 @@ class OcpSettings:
             raise ParameterError(f"OcpSettings.S = {self.S!r}: expected a finite stabiliser >= 0 (1/s)")
         if int(self.substeps) != self.substeps or self.substeps < 1:
             raise ParameterError(f"OcpSettings.substeps = {self.substeps!r}: expected an integer >= 1")
+        if self.guess not in GUESSES:
+            raise ParameterError(f"OcpSettings.guess = {self.guess!r}: expected one of {list(GUESSES)}")
         if self.parallel not in ("auto", "serial", "openmp", "thread"):
             raise ParameterError(f"OcpSettings.parallel = {self.parallel!r}: expected 'auto', 'serial', 'openmp' or 'thread'")
         if self.end_tolerance is not None and not (0 <= self.end_tolerance < 1):
             raise ParameterError(f"OcpSettings.end_tolerance = {self.end_tolerance!r}: expected a fraction in [0, 1) or None")
+
+    @property
+    def map_mode(self) -> str:
+        """How the interval functions are mapped: ``auto`` is ``openmp`` for a compiled NLP (the
+        generated C runs the intervals on every core) and ``serial`` otherwise."""
+        if self.parallel == "auto":
+            return "openmp" if self.solver.compile else "serial"
+        return self.parallel
 
     @property
     def preset_values(self) -> Preset:
@@ -457,17 +479,32 @@ class FatigueOcp:
         self.actuators = SignedTorqueActuators.from_model(model, settings.resolved_fatigue())
         self.actuators.check_stabiliser(task.dt / settings.substeps, "rk4")
         self.n_intervals = N = settings.n_cycles * task.intervals_per_cycle
-        self.functions = fn = IntervalFunctions(model, self.actuators, task, settings.substeps, expand=settings.expand)
-        self.layout = layout = fn.layout
-        nx, nu = layout.nx, layout.nu
+        self.functions = IntervalFunctions(model, self.actuators, task, settings.substeps, expand=settings.expand)
+        self.layout = self.functions.layout
+        with openmp_fallback_quiet():
+            opti = self._formulate()
+            self.nlp = NlpSolver(opti, settings.solver, name=f"fatigue_ocp_{model.name}_{N}")
+        self._p_index = self._parameter_slices()
+        self.build_time_s = time.perf_counter() - t0
+        self.t = np.linspace(0.0, N * task.dt, N + 1)
 
+    def _formulate(self) -> ca.Opti:
+        """The NLP of SPEC section 4 as a ``casadi.Opti`` problem (variables, parameters,
+        constraints, objective); sets ``X, U, T``, the parameters and the cost-term functions."""
+        settings, fn, layout, N = self.settings, self.functions, self.layout, self.n_intervals
+        nx, nu = layout.nx, layout.nu
         opti = ca.Opti()
         self.opti = opti
-        X = opti.variable(nx, N + 1)
-        U = opti.variable(nu, N)
+        # IPOPT sees scaled variables (torques in units of their limit, velocities of their bound)
+        self.x_scale, self.u_scale, self.t_scale = self._variable_scales()
+        Xs = opti.variable(nx, N + 1)
+        Us = opti.variable(nu, N)
         # joint torque tau_plus + tau_minus as its own variable: the rigid-body dynamics then
         # depend on nv torques instead of 2 nv halves, which halves the exact Hessian's cost
-        T = opti.variable(layout.nv, N)
+        Ts = opti.variable(layout.nv, N)
+        X = ca.diag(ca.DM(self.x_scale)) @ Xs
+        U = ca.diag(ca.DM(self.u_scale)) @ Us
+        T = ca.diag(ca.DM(self.t_scale)) @ Ts
         self.X, self.U, self.T = X, U, T
         P_fatigue = opti.parameter(self.actuators.n_halves * 6)
         P_weights = opti.parameter(len(COST_TERMS))
@@ -477,7 +514,7 @@ class FatigueOcp:
 
         # Dynamics: multiple-shooting gaps, one mapped RK4 interval function.
         ny, nv = layout.nq + layout.nv, layout.nv
-        mode = "serial" if settings.parallel == "auto" else settings.parallel
+        mode = settings.map_mode
         par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
         opti.subject_to(T == U[:nv, :] + U[nv:, :])
         opti.subject_to(X[:ny, 1:] == fn.F_rb.map(N, *par)(X[:ny, :N], T))
@@ -493,13 +530,28 @@ class FatigueOcp:
         self._terms_all = fn.terms.map(N)(X[:, :N], U, U_prev)  # (4, N)
         opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_all)))
 
-        self._terms_fn = ca.Function("cycle_terms", [X, U], [self._terms_all])
-        self.nlp = NlpSolver(opti, settings.solver, name=f"fatigue_ocp_{model.name}_{N}")
-        self._p_index = self._parameter_slices()
-        self.build_time_s = time.perf_counter() - t0
-        self.t = np.linspace(0.0, N * task.dt, N + 1)
+        Xn, Un = ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", nu, N)
+        terms_n = fn.terms.map(N)(Xn[:, :N], Un, ca.horzcat(Un[:, 0], Un[:, : N - 1]))
+        self._terms_fn = ca.Function("cycle_terms", [Xn, Un], [terms_n])
+        return opti
 
     # -- parameters and bounds -------------------------------------------------------------------
+
+    def _variable_scales(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Scales of the decision variables (state, control, joint torque): IPOPT solves for
+        value / scale. Velocities are scaled by their bound, torques by their limit."""
+        L = self.layout
+        x = np.ones(L.nx)
+        u = np.ones(L.nu)
+        t = np.ones(L.nv)
+        if self.settings.scaling:
+            vmax = np.maximum(np.abs(self.model.v_lower), np.abs(self.model.v_upper))
+            x[L.v] = np.where(np.isfinite(vmax) & (vmax > 0), vmax, 1.0)
+            tmax = np.maximum(np.abs(self.model.tau_lower), np.abs(self.model.tau_upper))
+            tmax = np.where(np.isfinite(tmax) & (tmax > 0), tmax, 1.0)
+            u = np.concatenate([tmax, tmax])
+            t = tmax
+        return x, u, t
 
     def _parameter_slices(self) -> list[slice]:
         """Slices of the Opti parameter vector for each parameter, in creation order."""
@@ -589,6 +641,18 @@ class FatigueOcp:
             x[k + 1, L.m] = np.clip(step[L.m], 0.0, 1.0)
         return x
 
+    def rest_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The paper's initial guess: every node at the initial state, zero torque.
+        Shapes (N+1, nx), (N, nu)."""
+        x_init = self.initial_state() if x_init is None else np.asarray(x_init, dtype=float).reshape(-1)
+        return np.tile(x_init, (self.n_intervals + 1, 1)), np.zeros((self.n_intervals, self.layout.nu))
+
+    def initial_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The initial guess named by ``settings.guess`` (``rest`` or ``physical``)."""
+        if self.settings.guess == "physical":
+            return self.physical_guess(x_init)
+        return self.rest_guess(x_init)
+
     def physical_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A physical initial guess: the task joint on a cosine between its targets, the other
         joints at their initial angles, the inverse-dynamics torques split into the actuator
@@ -616,14 +680,15 @@ class FatigueOcp:
         x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float)
         nv = self.layout.nv
         tau = u[:, :nv] + u[:, nv:]
-        return np.concatenate([x.T.reshape(-1, order="F"), u.T.reshape(-1, order="F"), tau.T.reshape(-1, order="F")])
+        xs, us, ts = x / self.x_scale, u / self.u_scale, tau / self.t_scale
+        return np.concatenate([xs.T.reshape(-1, order="F"), us.T.reshape(-1, order="F"), ts.T.reshape(-1, order="F")])
 
     def unflatten(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, nx) and controls (N, nu) from a decision vector."""
         N, L = self.n_intervals, self.layout
         nX, nU = L.nx * (N + 1), L.nu * N
-        x = z[:nX].reshape((L.nx, N + 1), order="F").T
-        u = z[nX : nX + nU].reshape((L.nu, N), order="F").T
+        x = z[:nX].reshape((L.nx, N + 1), order="F").T * self.x_scale
+        u = z[nX : nX + nU].reshape((L.nu, N), order="F").T * self.u_scale
         return x, u
 
     # -- solving ----------------------------------------------------------------------------------
@@ -641,7 +706,7 @@ class FatigueOcp:
 
         Args:
             x_init: fixed initial state (nx,); default :meth:`initial_state`.
-            guess: initial guess (states (N+1, nx), controls (N, nu)); default :meth:`physical_guess`.
+            guess: initial guess (states (N+1, nx), controls (N, nu)); default :meth:`initial_guess`.
             x_end: reference state of the end bounds (with ``end_tolerance`` set).
             warm: a previous result of the same problem whose multipliers start this solve.
             weights: cost weights for this solve (default: the settings').
@@ -654,7 +719,7 @@ class FatigueOcp:
         if x_init.size != self.layout.nx:
             raise ParameterError(f"x_init has {x_init.size} entries; expected nx = {self.layout.nx}")
         if guess is None:
-            guess = self.physical_guess(x_init)
+            guess = self.initial_guess(x_init)
         p = self.parameter_vector(x_init, x_end, weights)
         z0 = self.flatten(*guess)
         res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None, max_iter=max_iter)

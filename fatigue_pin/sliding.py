@@ -222,7 +222,7 @@ class SlidingHorizon:
                 break
             if state is None:
                 x_init = ocp.initial_state()
-                guess = ocp.physical_guess(x_init)
+                guess = ocp.initial_guess(x_init)
                 first_cycle = 0
             else:
                 first_cycle = state.n_cycles - K + A

@@ -17,15 +17,18 @@ into an ``nlpsol`` once and re-solves it with new parameter values as often as n
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import io
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator, TextIO
 
 import casadi as ca
 import numpy as np
@@ -132,15 +135,60 @@ class NlpResult:
 
 
 def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
-    """Compile generated C into a shared library, atomically placed at ``target``."""
+    """Compile generated C into a shared library, atomically placed at ``target``.
+
+    Code with OpenMP pragmas (intervals mapped with ``parallel="openmp"``) is compiled with
+    ``-fopenmp``; if the compiler lacks OpenMP it is compiled without (the pragmas are then ignored
+    and the intervals are evaluated serially).
+    """
     target.parent.mkdir(parents=True, exist_ok=True)
+    openmp = "#pragma omp" in source.read_text()
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         tmp_so = Path(tmp) / target.name
         cmd = [options.compiler, "-fPIC", "-shared", *options.compiler_flags, str(source), "-o", str(tmp_so), "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
+        proc = subprocess.run(cmd[:1] + ["-fopenmp"] + cmd[1:], capture_output=True, text=True) if openmp else None
+        if proc is None or proc.returncode != 0:
+            proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"compiling the NLP failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
         os.replace(tmp_so, target)
+
+
+class _DropLines(io.TextIOBase):
+    """A text stream that forwards everything but lines containing ``marker`` to ``stream``."""
+
+    def __init__(self, stream: TextIO, marker: str) -> None:
+        self._stream, self._marker, self._pending = stream, marker, ""
+
+    def write(self, text: str) -> int:
+        self._pending += text
+        *lines, self._pending = self._pending.split("\n")
+        for line in lines:
+            if self._marker not in line:
+                self._stream.write(line + "\n")
+        return len(text)
+
+    def flush(self) -> None:
+        if self._pending and self._marker not in self._pending:
+            self._stream.write(self._pending)
+        self._pending = ""
+        self._stream.flush()
+
+
+@contextlib.contextmanager
+def openmp_fallback_quiet() -> Iterator[None]:
+    """Silence CasADi's "not compiled with WITH_OPENMP" warning while a problem is built.
+
+    The PyPI CasADi has no OpenMP, so its virtual machine evaluates ``map(..., "openmp")``
+    serially and says so for every mapped function and derivative; the C generated for the
+    compiled NLP still carries the OpenMP pragmas, which :func:`_compile_shared` honours.
+    """
+    quiet = _DropLines(sys.stderr, "WITH_OPENMP")
+    with contextlib.redirect_stderr(quiet):
+        try:
+            yield
+        finally:
+            quiet.flush()
 
 
 class NlpSolver:

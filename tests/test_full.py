@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import fatigue_pin.full as full
-from fatigue_pin.full import extend_guess, max_repetitions, solution_to_run
+from fatigue_pin.full import resample_guess, max_repetitions, solution_to_run
 from fatigue_pin.ocp import FatigueOcp
 from fatigue_pin.results import read_run, read_search
 
@@ -33,7 +33,7 @@ class _FakeOcp:
 
 def test_search_gallops_then_bisects(monkeypatch, small_settings):
     monkeypatch.setattr(full, "FatigueOcp", _FakeOcp)
-    monkeypatch.setattr(full, "extend_guess", lambda ocp, sol: "guess")
+    monkeypatch.setattr(full, "resample_guess", lambda ocp, sol: "guess")
     _FakeOcp.guesses = []
     result = max_repetitions(None, small_settings, n_max=64)
     assert result.max_cycles == 5
@@ -43,7 +43,7 @@ def test_search_gallops_then_bisects(monkeypatch, small_settings):
 
 def test_search_stops_at_n_max(monkeypatch, small_settings):
     monkeypatch.setattr(full, "FatigueOcp", _FakeOcp)
-    monkeypatch.setattr(full, "extend_guess", lambda ocp, sol: "guess")
+    monkeypatch.setattr(full, "resample_guess", lambda ocp, sol: "guess")
     _FakeOcp.limit = 100
     try:
         result = max_repetitions(None, small_settings, n_max=12)
@@ -63,15 +63,21 @@ def test_real_search_on_a_small_problem(arm26, small_settings, tmp_path):
     assert run.n_cycles == 3 and run.converged
 
 
-def test_extend_guess_repeats_the_last_cycle(arm26, small_settings):
-    one = FatigueOcp(arm26, small_settings.with_(n_cycles=1))
-    sol = one.solve()
+def test_resample_guess_stretches_cycles_in_time(arm26, small_settings):
+    two = FatigueOcp(arm26, small_settings.with_(n_cycles=2))
+    sol = two.solve()
+    n = two.task.intervals_per_cycle
+    four = FatigueOcp(arm26, small_settings.with_(n_cycles=4))
+    x, u = resample_guess(four, sol)
+    assert x.shape == (4 * n + 1, four.layout.nx) and u.shape == (4 * n, 4)
+    # cycles 0, 1 copy cycle 0; cycles 2, 3 copy cycle 1; the last node copies the last node
+    assert np.allclose(u[:n], sol.u[:n]) and np.allclose(u[n : 2 * n], sol.u[:n])
+    assert np.allclose(u[3 * n :], sol.u[n:]) and np.allclose(x[3 * n : 4 * n], sol.x[n : 2 * n])
+    assert np.allclose(x[-1], sol.x[-1])
+    # three cycles from two: cycle c copies cycle floor(2 c / 3) = 0, 0, 1
     three = FatigueOcp(arm26, small_settings.with_(n_cycles=3))
-    x, u = extend_guess(three, sol)
-    assert x.shape == (31, three.layout.nx) and u.shape == (30, 4)
-    assert np.allclose(u[20:30], sol.u) and np.allclose(x[20:31, :2], sol.q)
-    # fatigue keeps growing through the repeated cycles
-    assert x[-1, three.layout.fatigue_index("mf")].max() > sol.fatigue("mf")[-1].max()
+    _, u3 = resample_guess(three, sol)
+    assert np.allclose(u3[n : 2 * n], sol.u[:n]) and np.allclose(u3[2 * n :], sol.u[n:])
 
 
 def test_run_record_has_every_attribute(arm26, small_settings, tmp_path):
