@@ -166,7 +166,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_reproduce)
 
     p = sub.add_parser("max-cycles", help="largest number of cycles the full-horizon OCP converges for")
-    p.add_argument("--n-max", type=int, default=64, help="largest N tried")
+    p.add_argument("--n-max", type=int, default=33, help="largest N tried (default 33, the paper's range)")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_max_cycles)
 

@@ -159,7 +159,7 @@ class SearchResult:
 def max_repetitions(
     model: RobotModel,
     settings: OcpSettings,
-    n_max: int = 64,
+    n_max: int = 33,
     progress: Progress = _quiet,
     out: str | Path | None = None,
 ) -> SearchResult:

@@ -43,7 +43,7 @@ class Job:
     S: float
     preset: str
     out: Path
-    n_max: int = 64
+    n_max: int = 33
     max_cycles: int | None = None
 
     @property
@@ -152,7 +152,7 @@ def reproduce(
     forward = run_forward_studies(out)
     stabilisers = (10.0,) if quick else (10.0, 0.0)
     job_list = [
-        Job(h, c, S, preset, out / f"{h}_{c}_S{S:g}.h5", n_max=4 if quick else 64,
+        Job(h, c, S, preset, out / f"{h}_{c}_S{S:g}.h5", n_max=4 if quick else 33,
             max_cycles=6 if quick else None)
         for h in ("sliding", "full") for S in stabilisers for c in COSTS
     ]

@@ -108,9 +108,36 @@ def test_compiled_solve_matches_uncompiled(arm26, small_settings, tmp_path):
     assert compiled_ocp.nlp.compiled_path is not None and compiled_ocp.nlp.compiled_path.exists()
     compiled = compiled_ocp.solve()
     assert compiled.success and compiled.objective == pytest.approx(plain.objective, rel=1e-6)
+    # compiled problems map their intervals with OpenMP, and the library is built with it
+    assert compiled_ocp.settings.map_mode == "openmp" and plain.status == compiled.status
+    assert b"GOMP_parallel" in compiled_ocp.nlp.compiled_path.read_bytes()
     # a second build finds the library in the cache instead of compiling again
     again = FatigueOcp(arm26, settings.with_(solver=SolverOptions(cache_dir=tmp_path)))
     assert again.nlp.compile_time_s == 0.0 and again.nlp.compiled_path == compiled_ocp.nlp.compiled_path
+
+
+def test_building_a_compiled_problem_prints_no_openmp_fallback_warning(arm26, small_settings, tmp_path, capsys):
+    FatigueOcp(arm26, small_settings.with_(n_cycles=1, solver=SolverOptions(cache_dir=tmp_path)))
+    assert "WITH_OPENMP" not in capsys.readouterr().err
+
+
+def test_scaling_changes_iterations_not_the_solution(arm26, small_settings):
+    scaled = FatigueOcp(arm26, small_settings.with_(n_cycles=2))
+    plain = FatigueOcp(arm26, small_settings.with_(n_cycles=2, scaling=False))
+    assert scaled.u_scale.max() == 50.0 and plain.u_scale.max() == 1.0
+    a, b = scaled.solve(), plain.solve()
+    assert a.success and b.success
+    assert a.objective == pytest.approx(b.objective, rel=1e-5)
+    assert np.allclose(a.q, b.q, atol=1e-3)
+
+
+def test_rest_guess_is_the_initial_state_with_zero_torque(arm26, small_settings):
+    ocp = FatigueOcp(arm26, small_settings.with_(n_cycles=2))
+    x, u = ocp.initial_guess()
+    assert x.shape == (21, ocp.layout.nx) and u.shape == (20, 4)
+    assert np.all(x == ocp.initial_state()) and np.all(u == 0)
+    xp, up = FatigueOcp(arm26, small_settings.with_(n_cycles=2, guess="physical")).initial_guess()
+    assert np.abs(up).max() > 1.0 and np.ptp(xp[:, 1]) > 2.0  # elbow swept 15 -> 150 deg
 
 
 def test_failure_is_a_result(arm26, small_settings):
@@ -127,6 +154,7 @@ def test_failure_is_a_result(arm26, small_settings):
         ({"S": -1.0}, "S"),
         ({"n_cycles": 0}, "n_cycles"),
         ({"preset": "mine"}, "preset"),
+        ({"guess": "zero"}, "guess"),
     ],
 )
 def test_bad_settings(changes, match):

@@ -1,0 +1,62 @@
+"""Full-horizon maximum repetitions for the three costs with S = 10 and S = 0 (paper table 2).
+
+Runs ``fatigue_pin.full.max_repetitions`` for every (cost, S), one after the other (each solve
+uses every core), writes one HDF5 file per search into ``--out`` (the search table and the best
+run; rewritten after every N, so an interrupted study keeps what it found) and prints every N
+tried and the summary beside the paper's. Usage::
+
+    python experiments/max_repetitions.py --out results/max_repetitions [--preset authors-code]
+        [--n-max 33] [--costs fatigue-torque torque fatigue] [--stabilization 10 0]
+        [--max-wall-time 900]
+
+The default preset is ``authors-code``: the paper's counts come from those values. ``--n-max 33``
+is the paper's range (it found 33 infeasible). ``--max-wall-time`` bounds one solve; a solve
+stopped by it counts as a failure and is reported with IPOPT's status.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from fatigue_pin.full import max_repetitions
+from fatigue_pin.model import load_model
+from fatigue_pin.ocp import COSTS, OcpSettings
+from fatigue_pin.reproduce import PAPER_REPETITIONS
+from fatigue_pin.solver import SolverOptions
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("results/max_repetitions"), help="output directory")
+    parser.add_argument("--preset", default="authors-code", choices=["paper", "authors-code"])
+    parser.add_argument("--n-max", type=int, default=33, help="largest N tried (default 33)")
+    parser.add_argument("--costs", nargs="+", default=list(COSTS), choices=list(COSTS))
+    parser.add_argument("--stabilization", type=float, nargs="+", default=[10.0, 0.0])
+    parser.add_argument("--max-wall-time", type=float, default=None, help="wall-time limit of one solve (s)")
+    args = parser.parse_args(argv)
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    model = load_model()
+    summary = []
+    for S in args.stabilization:
+        for cost in args.costs:
+            settings = OcpSettings(cost=cost, S=S, preset=args.preset,
+                                   solver=SolverOptions(max_wall_time=args.max_wall_time))
+            print(f"== {cost}, S = {S:g}, preset {args.preset}", flush=True)
+            t0 = time.perf_counter()
+            out = args.out / f"full_{cost}_S{S:g}.h5"
+            result = max_repetitions(model, settings, n_max=args.n_max, progress=lambda s: print(s, flush=True), out=out)
+            solve = sum(float(r["wall_time_s"]) for r in result.tried)
+            summary.append((cost, S, result.max_cycles, solve, time.perf_counter() - t0))
+    print(f"\nmaximum repetitions, full horizon, preset {args.preset}, N <= {args.n_max}")
+    print(f"{'cost':<15} {'S':>4} {'ours':>5} {'paper':>6} {'solve s (all N)':>16} {'elapsed s':>10}")
+    for cost, S, reps, solve, elapsed in summary:
+        paper = PAPER_REPETITIONS[("full", S)][cost] if ("full", S) in PAPER_REPETITIONS else "-"
+        print(f"{cost:<15} {S:>4g} {reps:>5} {paper:>6} {solve:>16.1f} {elapsed:>10.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
