@@ -525,14 +525,12 @@ class FatigueOcp:
         # Bounds (states, task angles, initial and end states are all in X_lb / X_ub).
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
-        # Objective: weighted named terms, summed over intervals.
-        U_prev = ca.horzcat(U[:, 0], U[:, : N - 1])
-        self._terms_all = fn.terms.map(N)(X[:, :N], U, U_prev)  # (4, N)
-        opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_all)))
-
+        # Objective: weighted named terms, summed over intervals. The terms of every interval,
+        # (4, N), as a function of states and controls, also evaluates the per-cycle costs.
         Xn, Un = ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", nu, N)
-        terms_n = fn.terms.map(N)(Xn[:, :N], Un, ca.horzcat(Un[:, 0], Un[:, : N - 1]))
-        self._terms_fn = ca.Function("cycle_terms", [Xn, Un], [terms_n])
+        terms = fn.terms.map(N)(Xn[:, :N], Un, ca.horzcat(Un[:, 0], Un[:, : N - 1]))
+        self._terms_fn = ca.Function("interval_terms", [Xn, Un], [terms])
+        opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_fn(X, U))))
         return opti
 
     # -- parameters and bounds -------------------------------------------------------------------
