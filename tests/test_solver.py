@@ -24,3 +24,10 @@ def test_openmp_fallback_quiet_restores_stderr(capsys):
         print("kept", file=sys.stderr)
     assert sys.stderr is before
     assert capsys.readouterr().err == "kept\n"
+
+
+def test_cache_key_names_the_cpu_only_for_native_code():
+    from fatigue_pin.solver import SolverOptions, _host_key
+
+    assert _host_key(SolverOptions(compiler_flags=("-O1",))) == b""
+    assert _host_key(SolverOptions(compiler_flags=("-O3", "-march=native"))) != b""
