@@ -543,10 +543,14 @@ class FatigueOcp:
         u = np.ones(L.nu)
         t = np.ones(L.nv)
         if self.settings.scaling:
-            vmax = np.maximum(np.abs(self.model.v_lower), np.abs(self.model.v_upper))
-            x[L.v] = np.where(np.isfinite(vmax) & (vmax > 0), vmax, 1.0)
-            tmax = np.maximum(np.abs(self.model.tau_lower), np.abs(self.model.tau_upper))
-            tmax = np.where(np.isfinite(tmax) & (tmax > 0), tmax, 1.0)
+
+            def magnitude(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+                """Largest |bound| per joint; 1 where it is infinite or zero."""
+                m = np.maximum(np.abs(lower), np.abs(upper))
+                return np.where(np.isfinite(m) & (m > 0), m, 1.0)
+
+            x[L.v] = magnitude(self.model.v_lower, self.model.v_upper)
+            tmax = magnitude(self.model.tau_lower, self.model.tau_upper)
             u = np.concatenate([tmax, tmax])
             t = tmax
         return x, u, t
@@ -567,6 +571,15 @@ class FatigueOcp:
         x0[self.layout.q] = self.task.initial_configuration(self.model)
         x0[self.layout.fatigue_index("mr")] = 1.0
         return x0
+
+    def _x_init(self, x_init: np.ndarray | None) -> np.ndarray:
+        """``x_init`` as a flat float array of nx entries; :meth:`initial_state` if None."""
+        if x_init is None:
+            return self.initial_state()
+        x_init = np.asarray(x_init, dtype=float).reshape(-1)
+        if x_init.size != self.layout.nx:
+            raise ParameterError(f"x_init has {x_init.size} entries; expected nx = {self.layout.nx}")
+        return x_init
 
     def state_bounds(self, x_init: np.ndarray, x_end: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Node-wise state bounds, each of shape (nx, N+1).
@@ -616,7 +629,7 @@ class FatigueOcp:
             weights: cost weights (already zeroed for the cost); default the settings'.
             fatigue: stacked fatigue parameters (6 * n_halves,); default the actuators'.
         """
-        x_init = self.initial_state() if x_init is None else np.asarray(x_init, dtype=float).reshape(-1)
+        x_init = self._x_init(x_init)
         weights = self.settings.resolved_weights() if weights is None else weights
         fatigue = self.actuators.param_vector() if fatigue is None else np.asarray(fatigue, dtype=float).reshape(-1)
         X_lb, X_ub = self.state_bounds(x_init, x_end)
@@ -642,7 +655,7 @@ class FatigueOcp:
     def rest_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The paper's initial guess: every node at the initial state, zero torque.
         Shapes (N+1, nx), (N, nu)."""
-        x_init = self.initial_state() if x_init is None else np.asarray(x_init, dtype=float).reshape(-1)
+        x_init = self._x_init(x_init)
         return np.tile(x_init, (self.n_intervals + 1, 1)), np.zeros((self.n_intervals, self.layout.nu))
 
     def initial_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -655,7 +668,7 @@ class FatigueOcp:
         """A physical initial guess: the task joint on a cosine between its targets, the other
         joints at their initial angles, the inverse-dynamics torques split into the actuator
         halves, and the fatigue states integrated from those torques. Shapes (N+1, nx), (N, nu)."""
-        x_init = self.initial_state() if x_init is None else np.asarray(x_init, dtype=float)
+        x_init = self._x_init(x_init)
         N, L, task = self.n_intervals, self.layout, self.task
         j = self.model.joint_names.index(task.joint)
         t = self.t
@@ -713,9 +726,7 @@ class FatigueOcp:
         Returns:
             An :class:`OcpSolution`; check ``success`` before using it as optimal.
         """
-        x_init = self.initial_state() if x_init is None else np.asarray(x_init, dtype=float).reshape(-1)
-        if x_init.size != self.layout.nx:
-            raise ParameterError(f"x_init has {x_init.size} entries; expected nx = {self.layout.nx}")
+        x_init = self._x_init(x_init)
         if guess is None:
             guess = self.initial_guess(x_init)
         p = self.parameter_vector(x_init, x_end, weights)

@@ -150,7 +150,7 @@ def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
     openmp = "#pragma omp" in source.read_text()
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         tmp_so = Path(tmp) / target.name
-        portable = [f for f in options.compiler_flags if "native" not in f]
+        portable = [f for f in options.compiler_flags if not _is_native(f)]
         attempts = []  # most capable first: OpenMP and CPU tuning, then without each
         for flags in dict.fromkeys((tuple(options.compiler_flags), tuple(portable))):
             if openmp:
@@ -166,11 +166,16 @@ def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
         os.replace(tmp_so, target)
 
 
+def _is_native(flag: str) -> bool:
+    """Whether a compiler flag tunes the code to this CPU (``-march=native``, ``-mtune=native``)."""
+    return flag.endswith("=native")
+
+
 def _host_key(options: SolverOptions) -> bytes:
     """What the cache key adds for code tuned to this CPU (``-march=native``): its model and
     instruction-set flags, so a cache shared between machines (a network home directory) never
     hands one machine's library to another."""
-    if not any("native" in flag for flag in options.compiler_flags):
+    if not any(_is_native(flag) for flag in options.compiler_flags):
         return b""
     try:
         lines = Path("/proc/cpuinfo").read_text().splitlines()
