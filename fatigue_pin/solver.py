@@ -61,7 +61,15 @@ class SolverOptions:
             includes the CPU, so a shared cache never serves it to another machine.
         cache_dir: where compiled NLPs are kept (default ``$FATIGUE_PIN_CACHE`` or
             ``~/.cache/fatigue_pin``).
-        ipopt: further IPOPT options, passed as they are.
+        mu_init: IPOPT's initial barrier parameter. 1 (IPOPT's default is 0.1): the first
+            barrier problems keep the torque halves away from their zero bound while the
+            trajectory is still far from feasible; 16-cycle curl from rest 98 iterations
+            against 119, and 10-20 % fewer across costs and horizons (docs/ocp.md).
+        perturb_dec_fact: how fast IPOPT lowers the Hessian regularisation after an
+            indefinite iteration. 0.6 (default 1/3) keeps it near the last working value, so
+            fewer extra factorisations are needed (16 cycles: 108 iterations at 90 ms against
+            119 at 95 ms).
+        ipopt: further IPOPT options, passed as they are (they override the fields above).
     """
 
     linear_solver: str = "mumps"
@@ -74,6 +82,8 @@ class SolverOptions:
     compiler: str = "gcc"
     compiler_flags: tuple[str, ...] = ("-O3", "-march=native")
     cache_dir: Path | None = None
+    mu_init: float = 1.0
+    perturb_dec_fact: float = 0.6
     ipopt: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -83,6 +93,10 @@ class SolverOptions:
                 raise ParameterError(f"SolverOptions.{name} = {value!r}: expected a finite tolerance > 0")
         if int(self.max_iter) != self.max_iter or self.max_iter < 0:
             raise ParameterError(f"SolverOptions.max_iter = {self.max_iter!r}: expected an integer >= 0")
+        if not (np.isfinite(self.mu_init) and self.mu_init > 0):
+            raise ParameterError(f"SolverOptions.mu_init = {self.mu_init!r}: expected a barrier parameter > 0")
+        if not (0 < self.perturb_dec_fact < 1):
+            raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
         if self.max_wall_time is not None and not self.max_wall_time > 0:
             raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
         if self.compile and shutil.which(self.compiler) is None:
@@ -99,6 +113,8 @@ class SolverOptions:
             "max_iter": int(self.max_iter),
             "print_level": int(self.print_level),
             "hessian_approximation": "exact",
+            "mu_init": float(self.mu_init),
+            "perturb_dec_fact": float(self.perturb_dec_fact),
             "sb": "yes",
         }
         if self.max_wall_time is not None:
