@@ -68,7 +68,8 @@ class SolverOptions:
         perturb_dec_fact: how fast IPOPT lowers the Hessian regularisation after an
             indefinite iteration. 0.6 (default 1/3) keeps it near the last working value, so
             fewer extra factorisations are needed (16 cycles: 108 iterations at 90 ms against
-            119 at 95 ms).
+            119 at 95 ms). Both together: 16 cycles from rest 101 iterations, 10.1 s against
+            119, 11.9 s; 32 cycles 212, 44 s against 232, 54 s.
         ipopt: further IPOPT options, passed as they are (they override the fields above).
     """
 
