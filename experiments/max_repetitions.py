@@ -22,7 +22,7 @@ from pathlib import Path
 
 from fatigue_pin.full import max_repetitions
 from fatigue_pin.model import load_model
-from fatigue_pin.ocp import COSTS, OcpSettings
+from fatigue_pin.ocp import COSTS, PRESETS, OcpSettings
 from fatigue_pin.reproduce import PAPER_REPETITIONS
 from fatigue_pin.solver import SolverOptions
 
@@ -30,7 +30,7 @@ from fatigue_pin.solver import SolverOptions
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/max_repetitions"), help="output directory")
-    parser.add_argument("--preset", default="authors-code", choices=["paper", "authors-code"])
+    parser.add_argument("--preset", default="authors-code", choices=list(PRESETS))
     parser.add_argument("--n-max", type=int, default=33, help="largest N tried (default 33)")
     parser.add_argument("--costs", nargs="+", default=list(COSTS), choices=list(COSTS))
     parser.add_argument("--stabilization", type=float, nargs="+", default=[10.0, 0.0])

@@ -117,9 +117,10 @@ def resample_guess(ocp: FatigueOcp, previous: OcpSolution) -> tuple[np.ndarray, 
     previous solution, states and controls alike, and the last node copies the last node. The
     fatigue trajectory is thus stretched over the new horizon (its gaps are not closed), so the
     guess keeps the previous solution's pacing: exhausted at the end, not half way. Measured on
-    arm26 (authors-code, fatigue-torque, S = 10), 16 cycles from the 8-cycle solution: 74 IPOPT
-    iterations, against 114 from the rest guess and 109 when the fatigue is integrated forward
-    from the copied controls instead.
+    arm26 (authors-code, fatigue-torque, S = 10) with the default solver options: 32 cycles from
+    the 16-cycle solution take 113 IPOPT iterations against 212 from the rest guess (16 from 8:
+    104 against 101). With IPOPT's own mu_init and perturb_dec_fact, 16 from 8 took 74 against
+    114, and 109 when the fatigue was integrated forward from the copied controls instead.
     """
     n = ocp.task.intervals_per_cycle
     n_new = ocp.settings.n_cycles

@@ -155,16 +155,15 @@ class NlpResult:
     wall_time_s: float
 
 
-def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
+def _compile_shared(source: Path, target: Path, options: SolverOptions, openmp: bool) -> None:
     """Compile generated C into a shared library, atomically placed at ``target``.
 
-    Code with OpenMP pragmas (intervals mapped with ``parallel="openmp"``) is compiled with
-    ``-fopenmp``; if the compiler lacks OpenMP it is compiled without (the pragmas are then ignored
-    and the intervals are evaluated serially). If a ``-march=native`` build fails, the flags
-    without it are tried.
+    Code with OpenMP pragmas (``openmp``: intervals mapped with ``parallel="openmp"``) is compiled
+    with ``-fopenmp``; if the compiler lacks OpenMP it is compiled without (the pragmas are then
+    ignored and the intervals are evaluated serially). If a ``-march=native`` build fails, the
+    flags without it are tried.
     """
     target.parent.mkdir(parents=True, exist_ok=True)
-    openmp = "#pragma omp" in source.read_text()
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         tmp_so = Path(tmp) / target.name
         portable = [f for f in options.compiler_flags if not _is_native(f)]
@@ -299,11 +298,12 @@ class NlpSolver:
             finally:
                 os.chdir(cwd)
             source = Path(tmp) / f"{name}.c"
-            key = source.read_bytes() + " ".join(self.options.compiler_flags).encode() + _host_key(self.options)
+            code = source.read_bytes()
+            key = code + " ".join(self.options.compiler_flags).encode() + _host_key(self.options)
             digest = hashlib.sha256(key).hexdigest()[:20]
             target = self.options.resolved_cache_dir() / f"{name}_{digest}.so"
             if not target.exists():
-                _compile_shared(source, target, self.options)
+                _compile_shared(source, target, self.options, openmp=b"#pragma omp" in code)
                 self.compile_time_s = time.perf_counter() - t0
         self.compiled_path = target
         return str(target)

@@ -5,7 +5,10 @@ from __future__ import annotations
 import io
 import sys
 
-from fatigue_pin.solver import _DropLines, openmp_fallback_quiet
+import pytest
+
+from fatigue_pin.errors import ParameterError
+from fatigue_pin.solver import SolverOptions, _DropLines, _host_key, openmp_fallback_quiet
 
 
 def test_drop_lines_forwards_everything_else():
@@ -27,15 +30,11 @@ def test_openmp_fallback_quiet_restores_stderr(capsys):
 
 
 def test_cache_key_names_the_cpu_only_for_native_code():
-    from fatigue_pin.solver import SolverOptions, _host_key
-
     assert _host_key(SolverOptions(compiler_flags=("-O1",))) == b""
     assert _host_key(SolverOptions(compiler_flags=("-O3", "-march=native"))) != b""
 
 
 def test_barrier_and_regularisation_defaults_reach_ipopt_and_can_be_overridden():
-    from fatigue_pin.solver import SolverOptions
-
     ipopt = SolverOptions().ipopt_options()["ipopt"]
     assert ipopt["mu_init"] == 1.0 and ipopt["perturb_dec_fact"] == 0.6
     ipopt = SolverOptions(mu_init=0.1, ipopt={"perturb_dec_fact": 1 / 3}).ipopt_options()["ipopt"]
@@ -43,11 +42,6 @@ def test_barrier_and_regularisation_defaults_reach_ipopt_and_can_be_overridden()
 
 
 def test_bad_barrier_settings_are_named():
-    import pytest
-
-    from fatigue_pin.errors import ParameterError
-    from fatigue_pin.solver import SolverOptions
-
     with pytest.raises(ParameterError, match="mu_init = -1"):
         SolverOptions(mu_init=-1)
     with pytest.raises(ParameterError, match="perturb_dec_fact = 1.5"):
