@@ -1,4 +1,4 @@
-"""Signed torque actuators, each half carrying its own 3CC-S fatigue model.
+"""Signed torque actuators, each half carrying its own fatigue model (any :class:`FatigueModel`).
 
 Every joint ``j`` of a model is driven by two halves whose torques add up to the joint torque:
 
@@ -6,14 +6,16 @@ Every joint ``j`` of a model is driven by two halves whose torques add up to the
 * the extension half ``j_minus`` with torque ``tau_minus`` in [tau_lower, 0].
 
 Each half has a target load ``TL = tau / tau_limit`` in [0, 1] (``tau_plus / tau_upper`` or
-``tau_minus / tau_lower``) and fatigue states ``(ma, mr, mf)`` driven by :func:`fatigue_pin.fatigue.fatigue_rhs`.
+``tau_minus / tau_lower``) and the fatigue states its model declares (Xia's 3CC: ``(ma, mr, mf)``),
+driven by the model's right-hand side.
 
 Orderings (used by every vector of this module):
 
 * halves: for each joint in model order, the plus half then the minus half, i.e.
   ``(j0_plus, j0_minus, j1_plus, j1_minus, ...)`` (``n_halves = 2 * nv``);
-* fatigue states: ``(ma, mr, mf)`` of each half consecutively, halves in the order above, i.e.
-  ``m[3*i : 3*i + 3]`` belongs to half ``i`` (``n_states = 3 * n_halves``);
+* fatigue states: the states of each half consecutively, halves in the order above; where a
+  half's states start is :meth:`SignedTorqueActuators.state_offsets`, and a state is addressed by
+  name with :meth:`SignedTorqueActuators.state_rows` (``n_states`` = the sum of the halves' states);
 * torques ``tau_plus`` and ``tau_minus``: one entry per joint in model order (shape (nv,)).
 
 The symbolic methods accept CasADi SX, MX or DM and numpy arrays, and return CasADi expressions.
@@ -30,14 +32,14 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.errors import DimensionError, ParameterError
-from fatigue_pin.fatigue import PARAM_NAMES, STATE_NAMES, FatigueParams, check_stabiliser, fatigue_rhs
+from fatigue_pin.fatigue import FatigueModel, FatigueParams
 
 __all__ = ["ActuatorHalf", "SignedTorqueActuators", "ParamsSpec"]
 
 Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
 #: Fatigue parameters for :meth:`SignedTorqueActuators.from_model`: one set for every half, or a
 #: dict joint name -> one set for both halves or a ``(plus, minus)`` pair.
-ParamsSpec = Union[FatigueParams, Mapping[str, Union[FatigueParams, tuple[FatigueParams, FatigueParams]]]]
+ParamsSpec = Union[FatigueModel, Mapping[str, Union[FatigueModel, tuple[FatigueModel, FatigueModel]]]]
 
 
 class _HasTorqueLimits(Protocol):
@@ -54,13 +56,13 @@ class ActuatorHalf:
         joint: name of the joint it drives.
         sign: +1 for the flexion half (torque >= 0), -1 for the extension half (torque <= 0).
         tau_limit: magnitude of its torque limit (N m, or N for a prismatic joint), > 0.
-        params: its fatigue parameters.
+        params: its fatigue model with its parameter values (any :class:`FatigueModel`).
     """
 
     joint: str
     sign: int
     tau_limit: float
-    params: FatigueParams
+    params: FatigueModel
 
     def __post_init__(self) -> None:
         if self.sign not in (1, -1) or isinstance(self.sign, bool):
@@ -72,8 +74,8 @@ class ActuatorHalf:
                 "expected a finite torque magnitude > 0 (N m)"
             )
         object.__setattr__(self, "tau_limit", lim)
-        if not isinstance(self.params, FatigueParams):
-            raise ParameterError(f"ActuatorHalf({self.joint!r}).params = {self.params!r}: expected a FatigueParams")
+        if not isinstance(self.params, FatigueModel):
+            raise ParameterError(f"ActuatorHalf({self.joint!r}).params = {self.params!r}: expected a fatigue model (FatigueModel)")
 
     @property
     def name(self) -> str:
@@ -180,7 +182,7 @@ class SignedTorqueActuators:
 
     @staticmethod
     def _resolve_params(names: tuple[str, ...], params: ParamsSpec) -> dict[str, tuple[FatigueParams, FatigueParams]]:
-        if isinstance(params, FatigueParams):
+        if isinstance(params, FatigueModel):
             return {n: (params, params) for n in names}
         if not isinstance(params, Mapping):
             raise ParameterError(
@@ -196,9 +198,9 @@ class SignedTorqueActuators:
         out: dict[str, tuple[FatigueParams, FatigueParams]] = {}
         for n in names:
             v = params[n]
-            if isinstance(v, FatigueParams):
+            if isinstance(v, FatigueModel):
                 out[n] = (v, v)
-            elif isinstance(v, tuple) and len(v) == 2 and all(isinstance(x, FatigueParams) for x in v):
+            elif isinstance(v, tuple) and len(v) == 2 and all(isinstance(x, FatigueModel) for x in v):
                 out[n] = (v[0], v[1])
             else:
                 raise ParameterError(f"fatigue params of joint {n!r} = {v!r}: expected a FatigueParams or a (plus, minus) pair")
@@ -228,8 +230,13 @@ class SignedTorqueActuators:
 
     @property
     def n_states(self) -> int:
-        """Number of fatigue states (``3 * n_halves``)."""
-        return 3 * len(self._halves)
+        """Number of fatigue states (the sum over halves of their model's states)."""
+        return sum(h.params.n_states() for h in self._halves)
+
+    @property
+    def n_params(self) -> int:
+        """Length of :meth:`param_vector` (the sum over halves of their model's parameters)."""
+        return sum(h.params.n_params() for h in self._halves)
 
     @property
     def half_names(self) -> tuple[str, ...]:
@@ -239,7 +246,42 @@ class SignedTorqueActuators:
     @property
     def state_names(self) -> tuple[str, ...]:
         """Fatigue state names ``("j0_plus_ma", "j0_plus_mr", "j0_plus_mf", "j0_minus_ma", ...)`` (dimensionless)."""
-        return tuple(f"{h.name}_{s}" for h in self._halves for s in STATE_NAMES)
+        return tuple(f"{h.name}_{s}" for h in self._halves for s in h.params.state_names)
+
+    @property
+    def fatigue_state_kinds(self) -> tuple[str, ...]:
+        """Every state name declared by the halves' models, in first-seen order (e.g. ``ma, mr, mf``)."""
+        return tuple(dict.fromkeys(s for h in self._halves for s in h.params.state_names))
+
+    def state_offsets(self) -> list[int]:
+        """Offset of each half's states in the fatigue state vector, length n_halves."""
+        offsets, k = [], 0
+        for h in self._halves:
+            offsets.append(k)
+            k += h.params.n_states()
+        return offsets
+
+    def param_offsets(self) -> list[int]:
+        """Offset of each half's parameters in :meth:`param_vector`, length n_halves."""
+        offsets, k = [], 0
+        for h in self._halves:
+            offsets.append(k)
+            k += h.params.n_params()
+        return offsets
+
+    def state_rows(self, state: str) -> list[int | None]:
+        """Row of state ``state`` of each half in the fatigue state vector (``None`` for a half whose
+        model has no such state), length n_halves."""
+        return [off + h.params.state_names.index(state) if state in h.params.state_names else None
+                for h, off in zip(self._halves, self.state_offsets())]
+
+    def fatigued_rows(self) -> list[int]:
+        """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
+        return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
+
+    def structure_key(self) -> str:
+        """Text identifying what compiled code depends on: joints, limits and fatigue equations."""
+        return ";".join(f"{h.name}:{h.tau_limit!r}:{h.params.structure_key()}" for h in self._halves)
 
     @property
     def tau_plus_limits(self) -> np.ndarray:
@@ -264,18 +306,19 @@ class SignedTorqueActuators:
         raise ParameterError(f"unknown actuator half {name!r}; the halves are {list(self.half_names)}")
 
     def param_vector(self) -> np.ndarray:
-        """Stacked fatigue parameters ``[LD, LR, F, R, S, r]`` of each half, shape (6 * n_halves,)."""
+        """Stacked fatigue parameters of each half (e.g. ``[LD, LR, F, R, S, r]`` for Xia's model),
+        shape (n_params,)."""
         return np.concatenate([h.params.as_vector() for h in self._halves])
 
     def initial_state(self) -> np.ndarray:
-        """The rested state ``(ma, mr, mf) = (0, 1, 0)`` for every half, shape (n_states,)."""
-        return np.tile([0.0, 1.0, 0.0], self.n_halves)
+        """The rested state of every half (Xia: ``(ma, mr, mf) = (0, 1, 0)``), shape (n_states,)."""
+        return np.concatenate([h.params.rest_state() for h in self._halves])
 
     def check_stabiliser(self, dt: float, method: str = "rk4") -> None:
-        """Run :func:`fatigue_pin.fatigue.check_stabiliser` on every half (raises ParameterError)."""
+        """Check every half's model for a stable explicit step ``dt`` (raises ParameterError)."""
         for h in self._halves:
             try:
-                check_stabiliser(h.params, dt, method)
+                h.params.check_step(dt, method)
             except ParameterError as exc:
                 raise ParameterError(f"actuator half {h.name!r}: {exc}") from None
 
@@ -297,10 +340,24 @@ class SignedTorqueActuators:
         tau = self.halves_torque(tau_plus, tau_minus)
         return tau / ca.DM(self.signed_limits)
 
-    def split_states(self, m: Expr) -> tuple[Expr, Expr, Expr]:
-        """``(ma, mr, mf)`` of all halves, each shape (n_halves,), from ``m`` of shape (n_states,)."""
+    def state(self, m: Expr, state: str) -> Expr:
+        """State ``state`` (e.g. ``"mf"``) of every half, shape (n_halves,), from ``m`` of shape
+        (n_states,). Every half's model must have that state."""
         m = _column(m, self.n_states, "fatigue states m")
-        return m[0::3], m[1::3], m[2::3]
+        rows = self.state_rows(state)
+        missing = [h.name for h, r in zip(self._halves, rows) if r is None]
+        if missing:
+            raise ParameterError(f"fatigue state {state!r} is not a state of the models of halves {missing}")
+        return ca.vertcat(*[m[r] for r in rows])
+
+    def split_states(self, m: Expr) -> tuple[Expr, ...]:
+        """Every state kind of :attr:`fatigue_state_kinds` of all halves, each shape (n_halves,)."""
+        return tuple(self.state(m, s) for s in self.fatigue_state_kinds)
+
+    def fatigued(self, m: Expr) -> Expr:
+        """Fatigued fraction of every half (its model's ``fatigued_state``), shape (n_halves,)."""
+        m = _column(m, self.n_states, "fatigue states m")
+        return ca.vertcat(*[m[r] for r in self.fatigued_rows()])
 
     def fatigue_rates(self, m: Expr, tau_plus: Expr, tau_minus: Expr, p: Expr | None = None) -> Expr:
         """``dm/dt`` (1/s), shape (n_states,), same layout as ``m``.
@@ -308,20 +365,22 @@ class SignedTorqueActuators:
         Args:
             m: fatigue states, shape (n_states,).
             tau_plus, tau_minus: half torques (N m), shape (nv,) each.
-            p: optional parameter vector, shape (6 * n_halves,), e.g. a symbol; default
+            p: optional parameter vector, shape (n_params,), e.g. a symbol; default
                 :meth:`param_vector`.
         """
         m = _column(m, self.n_states, "fatigue states m")
         TL = self.target_loads(tau_plus, tau_minus)
-        p = ca.DM(self.param_vector()) if p is None else _column(p, 6 * self.n_halves, "fatigue parameter vector p")
-        f = fatigue_rhs()
-        n = len(PARAM_NAMES)
-        return ca.vertcat(*[f(m[3 * i : 3 * i + 3], TL[i], p[n * i : n * i + n]) for i in range(self.n_halves)])
+        p = ca.DM(self.param_vector()) if p is None else _column(p, self.n_params, "fatigue parameter vector p")
+        out = []
+        for i, (h, so, po) in enumerate(zip(self._halves, self.state_offsets(), self.param_offsets())):
+            ns, npar = h.params.n_states(), h.params.n_params()
+            out.append(h.params.rhs()(m[so : so + ns], TL[i], p[po : po + npar]))
+        return ca.vertcat(*out)
 
     def coupling(self, m: Expr, tau_plus: Expr, tau_minus: Expr) -> Expr:
-        """Torque/fatigue coupling ``TL + mf`` per half (dimensionless), shape (n_halves,); OCPs bound it to [0, 1]."""
-        _, _, mf = self.split_states(m)
-        return self.target_loads(tau_plus, tau_minus) + mf
+        """Torque/fatigue coupling ``TL + fatigued fraction`` per half (dimensionless), shape
+        (n_halves,); OCPs bound it to [0, 1]."""
+        return self.target_loads(tau_plus, tau_minus) + self.fatigued(m)
 
     def available_torque(self, mf: Expr) -> Expr:
         """Signed torque each half can still produce, ``(1 - mf) * limit`` (N m), shape (n_halves,):

@@ -31,7 +31,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from numbers import Real
-from typing import Literal
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -40,6 +40,10 @@ from scipy.integrate import solve_ivp
 from fatigue_pin.errors import DimensionError, ParameterError
 
 __all__ = [
+    "FatigueModel",
+    "XiaFatigue",
+    "FATIGUE_MODELS",
+    "fatigue_model",
     "STATE_NAMES",
     "PARAM_NAMES",
     "PARAM_UNITS",
@@ -96,9 +100,105 @@ def _check_rate(owner: str, name: str, value: object, unit: str) -> float:
     return x
 
 
+class FatigueModel:
+    """Interface of a fatigue model of one actuator half, holding its parameter values.
+
+    A fatigue model is a frozen dataclass whose fields are its parameters (in
+    :attr:`param_names` order). The class declares:
+
+    * ``kind``: the name used in study files (``[fatigue] model = "xia"``);
+    * ``state_names``: its states, in state-vector order (dimensionless fractions);
+    * ``param_names`` and ``param_units``: its parameters, in the order of :meth:`as_vector`;
+    * ``fatigued_state``: the state that is the fatigued fraction, bounded with the target load
+      by the coupling constraint ``0 <= TL + m_fatigued <= 1`` of the OCPs;
+    * :meth:`rhs`: the right-hand side as an SX ``casadi.Function``
+      ``(m[n_states], TL, p[n_params]) -> dm[n_states]`` (1/s), built once per class;
+    * :meth:`rest_state`: the state of a rested actuator, shape (n_states,).
+
+    Nothing outside a model assumes a number of states or parameters: OCP state layouts, result
+    files and plots take the names declared here. See ``docs/fatigue.md`` for how to add one.
+    """
+
+    kind: ClassVar[str] = ""
+    state_names: ClassVar[tuple[str, ...]] = ()
+    param_names: ClassVar[tuple[str, ...]] = ()
+    param_units: ClassVar[tuple[str, ...]] = ()
+    fatigued_state: ClassVar[str] = "mf"
+
+    # -- structure (class level) -----------------------------------------------------------------
+
+    @classmethod
+    def rhs(cls) -> ca.Function:
+        """The right-hand side ``(m, TL, p) -> dm`` as an SX ``casadi.Function``."""
+        raise NotImplementedError(f"{cls.__name__}.rhs")
+
+    @classmethod
+    def rest_state(cls) -> np.ndarray:
+        """State of a rested actuator, shape (n_states,)."""
+        raise NotImplementedError(f"{cls.__name__}.rest_state")
+
+    @classmethod
+    def n_states(cls) -> int:
+        return len(cls.state_names)
+
+    @classmethod
+    def n_params(cls) -> int:
+        return len(cls.param_names)
+
+    @classmethod
+    def state_index(cls, name: str) -> int:
+        """Position of state ``name`` in this model's state vector."""
+        if name not in cls.state_names:
+            raise ParameterError(f"fatigue model {cls.kind!r} has no state {name!r}; its states are {list(cls.state_names)}")
+        return cls.state_names.index(name)
+
+    @classmethod
+    def structure_key(cls) -> str:
+        """Text that identifies the model's equations (the serialized right-hand side), for
+        caches of compiled code that depend on it."""
+        return f"{cls.kind}:{cls.rhs().serialize()}"
+
+    # -- values (instance level) -----------------------------------------------------------------
+
+    def __post_init__(self) -> None:
+        owner = type(self).__name__
+        for name, unit in zip(self.param_names, self.param_units):
+            object.__setattr__(self, name, _check_rate(owner, name, getattr(self, name), unit))
+
+    def with_(self, **changes: float) -> "FatigueModel":
+        """A copy with some parameters changed (validated again), e.g. ``params.with_(S=0)``."""
+        unknown = sorted(set(changes) - set(self.param_names))
+        if unknown:
+            raise ParameterError(f"{type(self).__name__}.with_: unknown field(s) {unknown}; expected some of {list(self.param_names)}")
+        return dataclasses.replace(self, **changes)
+
+    def as_vector(self) -> np.ndarray:
+        """The parameter vector ``p`` of :meth:`rhs`, shape (n_params,), in :attr:`param_names` order."""
+        return np.array([getattr(self, name) for name in self.param_names], dtype=float)
+
+    def as_dict(self) -> dict[str, float]:
+        """The parameters as a plain dict (for HDF5 attributes, logs and study files)."""
+        return {name: getattr(self, name) for name in self.param_names}
+
+    def check_step(self, dt: float, method: str = "rk4") -> None:
+        """Raise ParameterError if an explicit integrator with step ``dt`` (s) is unstable for
+        these parameters. The default accepts every step; models with a stiff term override it."""
+        del dt, method
+
+    def rates(self, m: np.ndarray, TL: float) -> np.ndarray:
+        """``dm/dt`` on numbers (1/s), shape (n_states,)."""
+        m = np.asarray(m, dtype=float).reshape(-1)
+        if m.shape != (self.n_states(),):
+            raise DimensionError(f"fatigue state of shape {m.shape}: expected {self.n_states()} entries {list(self.state_names)}")
+        return np.asarray(self.rhs()(m, float(TL), self.as_vector())).reshape(-1)
+
+
 @dataclass(frozen=True)
-class FatigueParams:
-    """Parameters of one 3CC / 3CC-S / 3CC-r fatigue model.
+class XiaFatigue(FatigueModel):
+    """Xia's three-compartment model 3CC, with the stabiliser S (3CC-S) and the rest-recovery
+    multiplier r (3CC-r) of Looft, Herkert & Frey-Law (2018).
+
+    States ``(ma, mr, mf)``: active, resting and fatigued fractions of the motor units.
 
     Attributes:
         LD: development factor of the controller C (1/s).
@@ -113,6 +213,12 @@ class FatigueParams:
     well-defined controller that never develops or never relaxes).
     """
 
+    kind: ClassVar[str] = "xia"
+    state_names: ClassVar[tuple[str, ...]] = ("ma", "mr", "mf")
+    param_names: ClassVar[tuple[str, ...]] = ("LD", "LR", "F", "R", "S", "r")
+    param_units: ClassVar[tuple[str, ...]] = ("1/s", "1/s", "1/s", "1/s", "1/s", "1")
+    fatigued_state: ClassVar[str] = "mf"
+
     LD: float
     LR: float
     F: float
@@ -120,51 +226,43 @@ class FatigueParams:
     S: float = 0.0
     r: float = 1.0
 
-    def __post_init__(self) -> None:
-        for name, unit in zip(PARAM_NAMES, PARAM_UNITS):
-            object.__setattr__(self, name, _check_rate("FatigueParams", name, getattr(self, name), unit))
-
-    # -- presets -------------------------------------------------------------------------------
+    @classmethod
+    def rhs(cls) -> ca.Function:
+        return fatigue_rhs()
 
     @classmethod
-    def elbow(cls, S: float = 0.0) -> FatigueParams:
-        """Elbow values of Looft et al. (2018) used in the forward studies (paper section 2).
+    def rest_state(cls) -> np.ndarray:
+        return np.array([0.0, 1.0, 0.0])
 
-        LD = LR = 10, F = 0.00912, R = 0.00094 (1/s), stabiliser ``S`` (1/s), no rest multiplier.
-        """
-        return cls(LD=10.0, LR=10.0, F=0.00912, R=0.00094, S=S)
+    def check_step(self, dt: float, method: str = "rk4") -> None:
+        check_stabiliser(self, dt, method)
 
-    @classmethod
-    def ocp(cls, variant: Literal["authors-code", "paper"] = "authors-code", S: float = 10.0) -> FatigueParams:
-        """Values of the optimal control problems (paper section 3, SPEC section 4).
 
-        LD = LR = 10, F = 0.456, S = 10 (1/s). ``R`` depends on the source: ``"paper"`` (the text)
-        gives 0.00094, ``"authors-code"`` (the code that produced the published results) 0.0094.
-        """
-        if variant == "paper":
-            R = 0.00094
-        elif variant == "authors-code":
-            R = 0.0094
-        else:
-            raise ParameterError(f"FatigueParams.ocp variant = {variant!r}: expected 'paper' or 'authors-code'")
-        return cls(LD=10.0, LR=10.0, F=0.456, R=R, S=S)
+#: The model that the rest of the package calls ``FatigueParams`` (Xia's 3CC / 3CC-S / 3CC-r).
+FatigueParams = XiaFatigue
 
-    # -- helpers -------------------------------------------------------------------------------
+#: Fatigue models by ``kind`` (the ``model`` key of a study file's ``[fatigue]`` table).
+FATIGUE_MODELS: dict[str, type[FatigueModel]] = {"xia": XiaFatigue}
 
-    def with_(self, **changes: float) -> FatigueParams:
-        """A copy with some fields changed (validated again), e.g. ``params.with_(S=0)``."""
-        unknown = sorted(set(changes) - set(PARAM_NAMES))
-        if unknown:
-            raise ParameterError(f"FatigueParams.with_: unknown field(s) {unknown}; expected some of {list(PARAM_NAMES)}")
-        return dataclasses.replace(self, **changes)
 
-    def as_vector(self) -> np.ndarray:
-        """The parameter vector ``p = [LD, LR, F, R, S, r]`` of :func:`fatigue_rhs`, shape (6,)."""
-        return np.array([getattr(self, name) for name in PARAM_NAMES], dtype=float)
+def fatigue_model(kind: str, **params: float) -> FatigueModel:
+    """A fatigue model by kind with its parameter values, e.g. ``fatigue_model("xia", LD=10, ...)``.
 
-    def as_dict(self) -> dict[str, float]:
-        """The fields as a plain dict (for HDF5 attributes and logs)."""
-        return {name: getattr(self, name) for name in PARAM_NAMES}
+    Raises:
+        ParameterError: unknown kind, unknown or missing parameter names, or bad values.
+    """
+    if kind not in FATIGUE_MODELS:
+        raise ParameterError(f"fatigue model {kind!r} is unknown; expected one of {sorted(FATIGUE_MODELS)}")
+    cls = FATIGUE_MODELS[kind]
+    unknown = sorted(set(params) - set(cls.param_names))
+    if unknown:
+        raise ParameterError(f"fatigue model {kind!r} has no parameter(s) {unknown}; its parameters are {list(cls.param_names)}")
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        fields = [f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING]
+        missing = [n for n in fields if n not in params]
+        raise ParameterError(f"fatigue model {kind!r} needs parameter(s) {missing}") from exc
 
 
 def check_stabiliser(params: FatigueParams | float, dt: float, method: str = "rk4") -> float | None:
@@ -191,7 +289,7 @@ def check_stabiliser(params: FatigueParams | float, dt: float, method: str = "rk
         ParameterError: ``dt`` not finite and > 0, unknown method, or ``S * dt`` outside the
             stability interval.
     """
-    S = params.S if isinstance(params, FatigueParams) else _check_rate("check_stabiliser", "S", params, "1/s")
+    S = params.S if isinstance(params, XiaFatigue) else _check_rate("check_stabiliser", "S", params, "1/s")
     key = method.lower()
     if key not in STABILITY_LIMITS:
         raise ParameterError(f"check_stabiliser: method = {method!r}: expected one of {sorted(STABILITY_LIMITS)}")

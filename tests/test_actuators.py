@@ -11,6 +11,7 @@ import pytest
 from fatigue_pin.actuators import ActuatorHalf, SignedTorqueActuators
 from fatigue_pin.errors import DimensionError, ParameterError
 from fatigue_pin.fatigue import FatigueParams, rhs_numeric
+from fatigue_pin.paper import elbow_params
 
 MODEL = SimpleNamespace(
     joint_names=("shoulder", "elbow"), tau_lower=np.array([-40.0, -50.0]), tau_upper=np.array([50.0, 25.0])
@@ -83,8 +84,8 @@ def test_symbolic(act, sym):
 
 
 def test_one_params_for_all():
-    act = SignedTorqueActuators.from_limits(["a", "b", "c"], [-1, -2, -3], [1, 2, 3], FatigueParams.elbow())
-    assert act.n_halves == 6 and all(h.params == FatigueParams.elbow() for h in act.halves)
+    act = SignedTorqueActuators.from_limits(["a", "b", "c"], [-1, -2, -3], [1, 2, 3], elbow_params())
+    assert act.n_halves == 6 and all(h.params == elbow_params() for h in act.halves)
 
 
 def test_bad_params_dicts():

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from fatigue_pin.errors import DimensionError, ParameterError
+from fatigue_pin.paper import elbow_params, ocp_params
 from fatigue_pin.fatigue import (
     STABILITY_LIMITS,
     FatigueParams,
@@ -108,7 +109,7 @@ def test_rhs_numeric_checks_size():
 
 @pytest.mark.parametrize("S", [0.0, 10.0])
 def test_exact_invariant_from_rest(S):
-    tr = simulate(FatigueParams.elbow(S=S), 0.8, (0.0, 1.0, 0.0), 60.0, method="DOP853", rtol=1e-12, atol=1e-12)
+    tr = simulate(elbow_params(S=S), 0.8, (0.0, 1.0, 0.0), 60.0, method="DOP853", rtol=1e-12, atol=1e-12)
     assert tr.success
     assert np.max(tr.invariant_error) < 1e-10
 
@@ -116,7 +117,7 @@ def test_exact_invariant_from_rest(S):
 def test_perturbed_sum_decays_like_exp_minus_S_t():
     S = 5.0
     t = np.linspace(0.0, 4.0, 401)
-    tr = simulate(FatigueParams.elbow(S=S), 0.8, (0.0, 1.0001, 0.0), 4.0, t_eval=t, method="DOP853", rtol=1e-12, atol=1e-14)
+    tr = simulate(elbow_params(S=S), 0.8, (0.0, 1.0001, 0.0), 4.0, t_eval=t, method="DOP853", rtol=1e-12, atol=1e-14)
     assert tr.success
     expected = -1e-4 * np.exp(-S * t)  # 1 - sum(t) = (1 - sum0) exp(-S t)
     np.testing.assert_allclose(1.0 - tr.total, expected, rtol=0, atol=1e-13)
@@ -124,8 +125,8 @@ def test_perturbed_sum_decays_like_exp_minus_S_t():
 
 def test_3cc_equals_3ccs_from_consistent_start():
     t = np.linspace(0.0, 60.0, 601)
-    a = simulate(FatigueParams.elbow(S=0.0), 0.8, (0.0, 1.0, 0.0), 60.0, t_eval=t)
-    b = simulate(FatigueParams.elbow(S=10.0), 0.8, (0.0, 1.0, 0.0), 60.0, t_eval=t)
+    a = simulate(elbow_params(S=0.0), 0.8, (0.0, 1.0, 0.0), 60.0, t_eval=t)
+    b = simulate(elbow_params(S=10.0), 0.8, (0.0, 1.0, 0.0), 60.0, t_eval=t)
     assert np.max(np.abs(a.m - b.m)) < 1e-12
 
 
@@ -150,22 +151,22 @@ def test_invariant_error_shapes():
 def test_bad_fields_raise_naming_the_field(field, bad):
     kwargs = dict(LD=10.0, LR=10.0, F=0.1, R=0.01, S=0.0, r=1.0)
     kwargs[field] = bad
-    with pytest.raises(ParameterError, match=rf"FatigueParams\.{field} = .*expected a finite"):
+    with pytest.raises(ParameterError, match=rf"XiaFatigue\.{field} = .*expected a finite"):
         FatigueParams(**kwargs)
 
 
 def test_presets_and_with():
-    e = FatigueParams.elbow()
+    e = elbow_params()
     assert (e.LD, e.LR, e.F, e.R, e.S, e.r) == (10.0, 10.0, 0.00912, 0.00094, 0.0, 1.0)
-    assert FatigueParams.ocp().R == 0.0094 and FatigueParams.ocp("paper").R == 0.00094
-    assert FatigueParams.ocp().F == 0.456 and FatigueParams.ocp().S == 10.0
+    assert ocp_params().R == 0.0094 and ocp_params("paper").R == 0.00094
+    assert ocp_params().F == 0.456 and ocp_params().S == 10.0
     assert e.with_(S=5).S == 5.0 and e.S == 0.0
-    with pytest.raises(ParameterError, match="FatigueParams.S"):
+    with pytest.raises(ParameterError, match="XiaFatigue.S"):
         e.with_(S=-1)
     with pytest.raises(ParameterError, match="unknown field"):
         e.with_(Q=1)
-    with pytest.raises(ParameterError, match="variant"):
-        FatigueParams.ocp("other")
+    with pytest.raises(ParameterError, match="preset"):
+        ocp_params("other")
     np.testing.assert_array_equal(e.as_vector(), [10, 10, 0.00912, 0.00094, 0, 1])
 
 
@@ -174,13 +175,13 @@ def test_presets_and_with():
 
 def test_stabiliser_check_rk4():
     dt = 0.02 / 5
-    amp = check_stabiliser(FatigueParams.ocp(), dt, "rk4")  # S dt = 0.04
+    amp = check_stabiliser(ocp_params(), dt, "rk4")  # S dt = 0.04
     z = -0.04
     assert amp == pytest.approx(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
     limit = STABILITY_LIMITS["rk4"]
     assert check_stabiliser(0.99 * limit / dt, dt) > -1.0
     with pytest.raises(ParameterError, match=r"S = 700.0.*dt = 0.004.*2.78529"):
-        check_stabiliser(FatigueParams.ocp(S=700.0), dt, "rk4")
+        check_stabiliser(ocp_params(S=700.0), dt, "rk4")
 
 
 def test_stabiliser_check_other_methods():
