@@ -3,8 +3,9 @@
 The paper raised the number of cycles N one at a time until IPOPT failed. :func:`max_repetitions`
 gallops instead (N = 1, 2, 4, ... until a failure), then bisects between the largest success and
 the smallest failure, each solve warm-started from the nearest converged solution with fewer
-cycles, stretched in time (:func:`resample_guess`). Every N tried is
-reported. Like the paper's search it assumes that convergence is monotone in N.
+cycles, stretched in time (:func:`resample_guess`). Every N tried is reported and, with ``out``,
+stored as it finishes, so a killed search resumes (``resume=True``) to the same result. Like the
+paper's search it assumes that convergence is monotone in N.
 """
 
 from __future__ import annotations
@@ -12,13 +13,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
-from fatigue_pin.model import RobotModel
-from fatigue_pin.ocp import COST_TERMS, FatigueOcp, OcpSettings, OcpSolution
-from fatigue_pin.results import RunResult, config_json, torque_limits_at_cycle_ends, write_run, write_search
+from fatigue_pin.problem import Problem
+from fatigue_pin.results import RunResult, list_runs, read_run, read_search, torque_limits_at_cycle_ends, write_run, write_search
+from fatigue_pin.solver import SolverOptions
+from fatigue_pin.transcription import IntervalFunctions, Ocp, OcpSolution, Transcription
 
 Progress = Callable[[str], None]
 
@@ -27,34 +29,29 @@ def _quiet(_: str) -> None:
     pass
 
 
-def run_attributes(ocp: FatigueOcp, horizon: str) -> dict[str, object]:
-    """Attributes describing a run of ``ocp`` (settings, fatigue parameters, solver)."""
-    s = ocp.settings
-    first = ocp.actuators.halves[0].params
-    per_half = {h.name: h.params.as_dict() for h in ocp.actuators.halves}
-    return {
+def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None) -> dict[str, object]:
+    """Attributes describing a run of ``ocp``: horizon, sizes, weights and fatigue parameters by
+    name (JSON), solver, model, and the study's ``labels`` (e.g. cost, S, preset)."""
+    s = ocp.solver_options
+    per_half = {h.name: {"model": h.params.kind, **h.params.as_dict()} for h in ocp.actuators.halves}
+    attrs: dict[str, object] = {
         "horizon": horizon,
-        "cost": s.cost,
-        "preset": s.preset,
-        "S": first.S,
-        "F": first.F,
-        "R": first.R,
-        "LD": first.LD,
-        "LR": first.LR,
-        "n_cycles": s.n_cycles,
-        "solver": f"ipopt/{s.solver.linear_solver}" + ("/compiled" if s.solver.compile else ""),
+        "n_cycles": ocp.n_cycles,
+        "solver": f"ipopt/{s.linear_solver}" + ("/compiled" if s.compile else ""),
         "model": ocp.model.name,
+        "weights": json.dumps(dict(zip(ocp.cost_terms, ocp.problem.weights.tolist()))),
         "fatigue_params": json.dumps(per_half),
         "tau_limits": ocp.actuators.signed_limits,
         "intervals_per_cycle": ocp.task.intervals_per_cycle,
         "dt": ocp.task.dt,
-        "substeps": s.substeps,
-        "config": config_json(s),
+        "substeps": ocp.transcription.substeps,
     }
+    attrs.update(labels or {})
+    return attrs
 
 
 def to_run_result(
-    ocp: FatigueOcp,
+    ocp: Ocp,
     t: np.ndarray,
     x: np.ndarray,
     u: np.ndarray,
@@ -63,10 +60,11 @@ def to_run_result(
     attrs: dict[str, object],
     cycle_wall_time_s: np.ndarray,
     windows: np.ndarray | None = None,
+    study: str = "",
 ) -> RunResult:
     """Assemble a :class:`RunResult` from node states (nodes, nx) and controls (intervals, nu)."""
     L = ocp.layout
-    mf = x[:, L.fatigue_index("mf")]
+    fatigued = x[:, [L.nq + L.nv + r for r in ocp.actuators.fatigued_rows()]]
     return RunResult(
         name=name,
         attrs=attrs,
@@ -75,23 +73,23 @@ def to_run_result(
         qdot=x[:, L.v],
         tau_plus=u[:, : L.nv],
         tau_minus=u[:, L.nv :],
-        ma=x[:, L.fatigue_index("ma")],
-        mr=x[:, L.fatigue_index("mr")],
-        mf=mf,
+        fatigue={s: L.fatigue_columns(x, s) for s in L.state_kinds},
         cycle_costs=cycle_costs,
-        torque_limits=torque_limits_at_cycle_ends(mf, ocp.actuators.signed_limits, ocp.task.intervals_per_cycle),
+        torque_limits=torque_limits_at_cycle_ends(fatigued, ocp.actuators.signed_limits, ocp.task.intervals_per_cycle),
         joint_names=ocp.model.joint_names,
         actuator_names=ocp.actuators.half_names,
-        cost_terms=COST_TERMS,
+        cost_terms=ocp.cost_terms,
         cycle_wall_time_s=cycle_wall_time_s,
         windows=windows,
         urdf=Path(ocp.model.urdf_path).read_text(),
+        study=study,
+        fatigued=fatigued,
     )
 
 
-def solution_to_run(ocp: FatigueOcp, sol: OcpSolution, name: str) -> RunResult:
+def solution_to_run(ocp: Ocp, sol: OcpSolution, name: str, study: str = "", labels: dict[str, Any] | None = None) -> RunResult:
     """The :class:`RunResult` of a full-horizon solution."""
-    attrs = run_attributes(ocp, "full")
+    attrs = run_attributes(ocp, "full", labels)
     attrs.update(
         converged=sol.success,
         status=sol.status,
@@ -101,16 +99,11 @@ def solution_to_run(ocp: FatigueOcp, sol: OcpSolution, name: str) -> RunResult:
         iterations=sol.iterations,
         objective=sol.objective,
     )
-    per_cycle = np.full(ocp.settings.n_cycles, sol.wall_time_s / ocp.settings.n_cycles)
-    return to_run_result(ocp, sol.t, sol.x, sol.u, sol.cycle_costs, name, attrs, per_cycle)
+    per_cycle = np.full(ocp.n_cycles, sol.wall_time_s / ocp.n_cycles)
+    return to_run_result(ocp, sol.t, sol.x, sol.u, sol.cycle_costs, name, attrs, per_cycle, study=study)
 
 
-def default_run_name(settings: OcpSettings, horizon: str) -> str:
-    """``full/fatigue-torque_S10`` style group names."""
-    return f"{horizon}/{settings.cost}_S{settings.S:g}"
-
-
-def resample_guess(ocp: FatigueOcp, previous: OcpSolution) -> tuple[np.ndarray, np.ndarray]:
+def resample_guess(ocp: Ocp, previous: OcpSolution | RunResult | tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Initial guess for ``ocp`` from a solution with another number of cycles, stretched in time.
 
     Cycle c of the new horizon (N_new cycles) copies cycle floor(c * N_prev / N_new) of the
@@ -119,22 +112,47 @@ def resample_guess(ocp: FatigueOcp, previous: OcpSolution) -> tuple[np.ndarray, 
     guess keeps the previous solution's pacing: exhausted at the end, not half way. Measured on
     arm26 (authors-code, fatigue-torque, S = 10) with the default solver options: 32 cycles from
     the 16-cycle solution take 113 IPOPT iterations against 212 from the rest guess (16 from 8:
-    104 against 101). With IPOPT's own mu_init and perturb_dec_fact, 16 from 8 took 74 against
-    114, and 109 when the fatigue was integrated forward from the copied controls instead.
+    104 against 101).
+
+    Args:
+        previous: an :class:`OcpSolution`, or ``(x, u)`` with x (nodes, nx) and u (intervals, nu).
     """
+    x_prev, u_prev = previous if isinstance(previous, tuple) else (previous.x, previous.u)
     n = ocp.task.intervals_per_cycle
-    n_new = ocp.settings.n_cycles
-    n_prev = previous.u.shape[0] // n
+    n_new = ocp.n_cycles
+    n_prev = u_prev.shape[0] // n
     src_cycle = (np.arange(n_new) * n_prev) // n_new
     idx_u = (src_cycle[:, None] * n + np.arange(n)[None, :]).reshape(-1)
-    idx_x = np.append(idx_u, previous.u.shape[0])
-    return previous.x[idx_x].copy(), previous.u[idx_u].copy()
+    idx_x = np.append(idx_u, u_prev.shape[0])
+    return x_prev[idx_x].copy(), u_prev[idx_u].copy()
 
 
-def solve_full(model: RobotModel, settings: OcpSettings, progress: Progress = _quiet) -> tuple[FatigueOcp, OcpSolution]:
-    """Build and solve one full-horizon OCP (``settings.n_cycles`` cycles)."""
-    progress(f"building the {settings.n_cycles}-cycle OCP ({settings.cost}, S = {settings.S:g}, preset {settings.preset}) ...")
-    ocp = FatigueOcp(model, settings)
+class OcpBuilder:
+    """Builds the OCPs of one problem for any horizon, sharing its interval functions.
+
+    Args:
+        problem, transcription, solver: as for :class:`Ocp`; guess: the default initial guess.
+    """
+
+    def __init__(self, problem: Problem, transcription: Transcription | None = None, solver: SolverOptions | None = None,
+                 guess: str = "rest") -> None:
+        self.problem = problem
+        self.transcription = transcription or Transcription()
+        self.solver = solver or SolverOptions()
+        self.guess = guess
+        self._functions: IntervalFunctions | None = None
+
+    def __call__(self, n_cycles: int, end_tolerance: float | None = None) -> Ocp:
+        ocp = Ocp(self.problem, n_cycles, self.transcription, self.solver, end_tolerance, self.guess, self._functions)
+        self._functions = ocp.functions
+        return ocp
+
+
+def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | None = None, solver: SolverOptions | None = None,
+               guess: str = "rest", progress: Progress = _quiet) -> tuple[Ocp, OcpSolution]:
+    """Build and solve one full-horizon OCP of ``n_cycles`` cycles."""
+    progress(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
+    ocp = OcpBuilder(problem, transcription, solver, guess)(n_cycles)
     compiled = f", compiled in {ocp.nlp.compile_time_s:.1f} s" if ocp.nlp.compile_time_s else ""
     progress(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")
     sol = ocp.solve()
@@ -149,65 +167,95 @@ class SearchResult:
     Attributes:
         max_cycles: the largest N that converged (0 if none did).
         tried: one row per N tried, in order: n_cycles, converged, status, iterations, wall_time_s.
-        best: the converged solution with ``max_cycles`` cycles, and its OCP.
+        best: the converged solution with ``max_cycles`` cycles, and its OCP (None when resumed
+            from a file and the best N was not solved again; read it from the file).
+        run: the best run as a :class:`RunResult`, when one converged.
     """
 
     max_cycles: int
     tried: list[dict[str, object]] = field(default_factory=list)
-    best: tuple[FatigueOcp, OcpSolution] | None = None
+    best: tuple[Ocp, OcpSolution] | None = None
+    run: RunResult | None = None
+
+
+def _search_name(name: str) -> str:
+    return name.replace("/", "_")
 
 
 def max_repetitions(
-    model: RobotModel,
-    settings: OcpSettings,
-    n_max: int = 33,
+    problem: Problem,
+    transcription: Transcription | None = None,
+    solver: SolverOptions | None = None,
+    n_max: int | None = None,
+    guess: str = "rest",
     progress: Progress = _quiet,
     out: str | Path | None = None,
+    name: str = "full/search",
+    study: str = "",
+    labels: dict[str, Any] | None = None,
+    resume: bool = False,
 ) -> SearchResult:
     """Largest number of cycles for which the full-horizon OCP converges.
 
     Args:
-        model: the rigid-body model.
-        settings: problem settings (``n_cycles`` is ignored).
-        n_max: largest N tried.
+        problem: the problem.
+        transcription, solver: discretisation and IPOPT settings.
+        n_max: largest N tried (``None``: gallop until a failure).
+        guess: initial guess of the first solve.
         progress: called with one line per step.
-        out: if given, the search table and the best run are written to this HDF5 file after
-            every solve, so an interrupted search keeps what it found.
+        out: HDF5 file; after every solve the search table (``/search/<name>``) and the converged
+            solution of that N (run ``<name>/N<n>``) are written, and the best run as ``name``.
+        name: run name of the best solution.
+        resume: continue the search stored in ``out`` (same problem), re-solving nothing already done.
     """
-    solutions: dict[int, tuple[FatigueOcp, OcpSolution]] = {}
+    build = OcpBuilder(problem, transcription, solver, guess)
+    solutions: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    done: dict[int, dict[str, object]] = {}
     result = SearchResult(max_cycles=0)
+    table = _search_name(name)
+    if resume and out is not None and Path(out).exists():
+        done, solutions = _restore_search(Path(out), table, name)
+        if done:
+            progress(f"resuming the search {name!r}: N = {sorted(done)} already done")
 
     def attempt(n: int) -> bool:
-        ocp = FatigueOcp(model, settings.with_(n_cycles=n))
-        done = [k for k in solutions if k <= n]
-        guess = resample_guess(ocp, solutions[max(done)][1]) if done else None
-        sol = ocp.solve(guess=guess)
+        if n in done:
+            row = done[n]
+            result.tried.append(row)
+            return bool(row["converged"])
+        ocp = build(n)
+        prior = [k for k in solutions if k <= n]
+        start = resample_guess(ocp, solutions[max(prior)]) if prior else None
+        sol = ocp.solve(guess=start)
         row = {"n_cycles": n, "converged": sol.success, "status": sol.status, "iterations": sol.iterations,
                "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s}
         result.tried.append(row)
         progress(f"N = {n:3d}: {'converged' if sol.success else 'failed   '} ({sol.status}, {sol.iterations} iterations, "
                  f"{sol.wall_time_s:.1f} s solve, {ocp.build_time_s:.1f} s build)")
         if sol.success:
-            solutions[n] = (ocp, sol)
-            if n > result.max_cycles:
+            solutions[n] = (sol.x, sol.u)
+            if n >= result.max_cycles:
                 result.max_cycles, result.best = n, (ocp, sol)
         if out is not None:
-            write_search(out, f"{settings.cost}_S{settings.S:g}", result.tried,
-                         {"cost": settings.cost, "S": settings.S, "preset": settings.preset, "max_cycles": result.max_cycles})
-            if sol.success and result.best is not None and result.best[1] is sol:
-                write_run(out, solution_to_run(ocp, sol, default_run_name(settings, "full")))
+            if sol.success:
+                run = solution_to_run(ocp, sol, f"{name}/N{n}", study, labels)
+                write_run(out, run)
+                if n >= max([k for k in solutions] or [0]):
+                    best = solution_to_run(ocp, sol, name, study, labels)
+                    write_run(out, best)
+            write_search(out, table, result.tried, {**(labels or {}), "run": name, "max_cycles": max(solutions) if solutions else 0})
         return sol.success
 
     low, high = 0, None  # largest success, smallest failure
     n = 1
-    while n <= n_max:
+    while n_max is None or n <= n_max:
         if attempt(n):
             low = n
             n *= 2
         else:
             high = n
             break
-    if high is None and low < n_max:
+    if high is None and n_max is not None and low < n_max:
         if attempt(n_max):
             low = n_max
         else:
@@ -219,5 +267,46 @@ def max_repetitions(
         else:
             high = mid
     result.max_cycles = low
-    result.best = solutions.get(low)
+    if result.best is not None and result.best[0].n_cycles != low:
+        result.best = None
+    if out is not None and low > 0 and name in list_runs(out):
+        result.run = read_run(out, name)
+    elif result.best is not None:
+        result.run = solution_to_run(*result.best, name, study, labels)
     return result
+
+
+def _restore_search(path: Path, table: str, name: str) -> tuple[dict[int, dict[str, object]], dict[int, tuple[np.ndarray, np.ndarray]]]:
+    """Rows and converged solutions of a stored search."""
+    tables = read_search(path)
+    if table not in tables:
+        return {}, {}
+    done: dict[int, dict[str, object]] = {}
+    solutions: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    runs = set(list_runs(path))
+    for row in tables[table]:
+        n = int(row["n_cycles"])
+        status = row["status"].decode() if isinstance(row["status"], bytes) else str(row["status"])
+        converged = bool(row["converged"])
+        run_name = f"{name}/N{n}"
+        if converged and run_name not in runs:
+            continue  # the table was written but the run was not: solve it again
+        done[n] = {"n_cycles": n, "converged": converged, "status": status, "iterations": int(row["iterations"]),
+                   "wall_time_s": float(row["wall_time_s"]), "build_time_s": 0.0}
+        if converged:
+            run = read_run(path, run_name)
+            solutions[n] = (_states_of(run), np.hstack([run.tau_plus, run.tau_minus]))
+    return done, solutions
+
+
+def _states_of(run: RunResult) -> np.ndarray:
+    """States (nodes, nx) of a stored run, in the OCP's layout (q, qdot, each half's states)."""
+    cols = [run.q, run.qdot]
+    params = json.loads(run.attrs["fatigue_params"])
+    from fatigue_pin.fatigue import FATIGUE_MODELS
+
+    for h, half in enumerate(run.actuator_names):
+        kind = params[half].get("model", "xia")
+        for s in FATIGUE_MODELS[kind].state_names:
+            cols.append(run.fatigue[s][:, h : h + 1])
+    return np.hstack(cols)

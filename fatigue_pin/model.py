@@ -175,6 +175,30 @@ def _validate_joints(model: pin.Model, path: Path) -> None:
             )
 
 
+def resolve_model(name: str | Path | None = None, gravity: object = None) -> RobotModel:
+    """Load a model by name or path: a bundled model (``arm26``), an example-robot-data name
+    (``ur5``, ``panda``), or the path of a URDF file.
+
+    Raises:
+        ModelError: a name that is none of these, or a file that cannot be loaded.
+    """
+    g = None if gravity is None else np.asarray(gravity, dtype=float)
+    if name is None:
+        return load_model(None, g)
+    text = str(name)
+    here = Path(__file__).resolve().parent
+    if text.isidentifier() and any((folder / f"{text}.urdf").is_file() for folder in (here / "urdf", here.parent / "urdf")):
+        return load_model(bundled_urdf(text), g)
+    if text in EXAMPLE_ROBOTS:
+        return load_model(example_robot_urdf(text), g)
+    path = Path(text).expanduser()
+    if not path.suffix and not path.exists():
+        raise ModelError(
+            f"model {text!r} is not a bundled model (arm26), an example-robot-data name {sorted(EXAMPLE_ROBOTS)} or an existing URDF path"
+        )
+    return load_model(path, g)
+
+
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
 

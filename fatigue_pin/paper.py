@@ -93,3 +93,73 @@ PAPER_REPETITIONS = {
 PAPER_MINUTES_S0 = {("full", c): v for c, v in zip(COSTS, (41.8, 11.7, 1.70))} | {
     ("sliding", c): v for c, v in zip(COSTS, (10.0, 9.9, 0.39))
 }
+
+
+def curl_study_dict(
+    horizon: str = "sliding",
+    cost: str = "fatigue-torque",
+    preset_name: str = "paper",
+    S: float = 10.0,
+    cycles: int | None = None,
+    max_cycles: int | None = None,
+    guess: str = "rest",
+    solver: dict | None = None,
+    transcription: dict | None = None,
+    intervals_per_cycle: int = INTERVALS_PER_CYCLE,
+    substeps: int = SUBSTEPS,
+) -> dict:
+    """The paper's curl as a study table (the form of ``studies/*.toml``).
+
+    Args:
+        horizon: ``full``, ``sliding`` or ``max-cycles``.
+        cost: ``fatigue-torque``, ``fatigue`` or ``torque`` (:data:`COSTS`).
+        preset_name: ``paper`` or ``authors-code`` (:data:`PRESETS`).
+        S: stabiliser of every half (1/s).
+        cycles: the full horizon, or the window (default 1 / 3).
+        max_cycles: sliding: stop after; max-cycles: search bound.
+        guess, solver, transcription: optional settings of those tables.
+        intervals_per_cycle, substeps: the discretisation (the paper's 50 and 5; tests use less).
+    """
+    if cost not in COSTS:
+        raise ParameterError(f"cost = {cost!r}: expected one of {list(COSTS)}")
+    p = preset(preset_name)
+    weights = {"posture": p.posture_weight, **WEIGHTS}
+    costs = {
+        "posture": {"weight": weights["posture"] if "posture" in COSTS[cost] else 0.0, "joints": list(PENALISED_JOINTS)},
+        **{term: (weights[term] if term in COSTS[cost] else 0.0) for term in ("torque_rate", "fatigue", "torque")},
+    }
+    horizon_table: dict = {"kind": horizon, "guess": guess}
+    if horizon == "sliding":
+        horizon_table.update(cycles=cycles or 3, advance=1, end_tolerance=0.01)
+    elif horizon == "full":
+        horizon_table.update(cycles=cycles or 1)
+    if max_cycles is not None:
+        horizon_table["max_cycles"] = max_cycles
+    params = ocp_params(preset_name, S)
+    return {
+        "name": f"{cost}_S{S:g}",
+        "model": {"urdf": "arm26"},
+        "fatigue": {"model": "xia", **params.as_dict()},
+        "task": {
+            "cycle_duration": CYCLE_DURATION,
+            "intervals_per_cycle": intervals_per_cycle,
+            "q_init": list(Q_INIT),
+            "final_node_offset": p.last_node_offset,
+            "targets": [
+                {"joint": TASK_JOINT, "value": LOW, "at": 0.0},
+                {"joint": TASK_JOINT, "value": HIGH, "at": 0.5},
+            ],
+        },
+        "costs": costs,
+        "transcription": {"substeps": substeps, **(transcription or {})},
+        "horizon": horizon_table,
+        "solver": dict(solver or {}),
+        "labels": {"cost": cost, "preset": preset_name, "S": float(S)},
+    }
+
+
+def curl_study(*args, **kwargs):
+    """The paper's curl as a :class:`~fatigue_pin.study.Study` (arguments of :func:`curl_study_dict`)."""
+    from fatigue_pin.study import Study
+
+    return Study.from_dict(curl_study_dict(*args, **kwargs))

@@ -4,12 +4,16 @@ Layout (``docs/results.md``)::
 
     /<run name>/                     attributes: horizon, cost, preset, S, F, R, LD, LR, n_cycles,
                                      converged, status, wall_time_s, build_time_s, iterations,
-                                     solver, model, config (JSON), urdf (the model's URDF text)
+                                     solver, model, weights (JSON), fatigue_params (JSON),
+                                     study (the study's TOML text, when run from a study),
+                                     urdf (the model's URDF text)
         t            (nodes,)              s
         q, qdot      (nodes, nq)           rad, rad/s          attribute joints
         tau_plus     (intervals, nv)       N m                 attribute joints
         tau_minus    (intervals, nv)       N m
-        ma, mr, mf   (nodes, halves)       1                   attribute actuators
+        <state>      (nodes, halves)       1, one dataset per fatigue state the models declare
+                                           (Xia: ma, mr, mf; group attribute fatigue_states lists
+                                           them; NaN in the columns of halves without the state)
         cycle_costs  (cycles, terms)       weighted cost       attribute terms
         torque_limits (cycles, halves)     N m, (1 - mf) * tau_limit at the end of each cycle
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
@@ -37,9 +41,11 @@ from fatigue_pin.errors import FatiguePinError
 
 #: Attributes every run group carries.
 RUN_ATTRIBUTES = (
-    "horizon", "cost", "preset", "S", "F", "R", "LD", "LR", "n_cycles", "converged", "status",
-    "wall_time_s", "build_time_s", "iterations", "solver",
+    "horizon", "n_cycles", "converged", "status", "wall_time_s", "build_time_s", "iterations", "solver", "model",
+    "weights", "fatigue_params",
 )
+#: Fatigue states of files written before the layout named them (Xia's model).
+LEGACY_FATIGUE_STATES = ("ma", "mr", "mf")
 
 WINDOW_DTYPE = np.dtype([
     ("index", "i4"), ("first_cycle", "i4"), ("status", "S40"), ("converged", "?"),
@@ -65,7 +71,8 @@ class RunResult:
         t: node times (s), (nodes,).
         q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
         tau_plus, tau_minus: actuator half torques (N m), (intervals, nv).
-        ma, mr, mf: fatigue states of every half, (nodes, halves).
+        fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
+            the columns of halves whose model has no such state.
         cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
         torque_limits: available torque (1 - mf) * tau_limit of every half at the end of each
             cycle (N m, signed like the half), (cycles, halves).
@@ -73,6 +80,8 @@ class RunResult:
         cycle_wall_time_s: solve time attributed to each cycle (s), (cycles,).
         windows: sliding-horizon window table (structured, :data:`WINDOW_DTYPE`), or None.
         urdf: the model's URDF text (so the file reproduces itself), or "".
+        study: the TOML text of the study that produced the run, or "" (built in Python).
+        fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
     """
 
     name: str
@@ -82,9 +91,7 @@ class RunResult:
     qdot: np.ndarray
     tau_plus: np.ndarray
     tau_minus: np.ndarray
-    ma: np.ndarray
-    mr: np.ndarray
-    mf: np.ndarray
+    fatigue: dict[str, np.ndarray]
     cycle_costs: np.ndarray
     torque_limits: np.ndarray
     joint_names: tuple[str, ...]
@@ -93,6 +100,34 @@ class RunResult:
     cycle_wall_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     windows: np.ndarray | None = None
     urdf: str = ""
+    study: str = ""
+    fatigued: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.fatigued is None:
+            self.fatigued = self.fatigue.get("mf")
+
+    @property
+    def fatigue_states(self) -> tuple[str, ...]:
+        return tuple(self.fatigue)
+
+    def state(self, name: str) -> np.ndarray:
+        """Fatigue state ``name`` of every half, (nodes, halves)."""
+        if name not in self.fatigue:
+            raise ResultFileError(f"run {self.name!r} has no fatigue state {name!r}; its states are {list(self.fatigue)}")
+        return self.fatigue[name]
+
+    @property
+    def ma(self) -> np.ndarray:
+        return self.state("ma")
+
+    @property
+    def mr(self) -> np.ndarray:
+        return self.state("mr")
+
+    @property
+    def mf(self) -> np.ndarray:
+        return self.state("mf")
 
     @property
     def n_cycles(self) -> int:
@@ -107,8 +142,10 @@ class RunResult:
         return (self.t.size - 1) // max(self.n_cycles, 1)
 
     def invariant_error(self) -> np.ndarray:
-        """|1 - (ma + mr + mf)| of every half at every node, (nodes, halves)."""
-        return np.abs(1.0 - (self.ma + self.mr + self.mf))
+        """|1 - (sum of the fatigue states)| of every half at every node, (nodes, halves) (for
+        Xia's model |1 - (ma + mr + mf)|; states a half lacks count as 0)."""
+        total = sum(np.nan_to_num(v) for v in self.fatigue.values())
+        return np.abs(1.0 - total)
 
     def cycle_slice(self, cycle: int) -> slice:
         """Node slice of cycle ``cycle`` (0-based), both ends included."""
@@ -138,15 +175,19 @@ def _write_run(group: h5py.Group, run: RunResult) -> None:
     for key, value in run.attrs.items():
         group.attrs[key] = _as_attr(value)
     group.attrs["urdf"] = run.urdf
-    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_plus": "N m", "tau_minus": "N m", "ma": "1", "mr": "1", "mf": "1",
+    group.attrs["study"] = run.study
+    group.attrs["fatigue_states"] = list(run.fatigue)
+    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_plus": "N m", "tau_minus": "N m",
              "cycle_costs": "cost", "torque_limits": "N m", "cycle_wall_time_s": "s"}
+    arrays = {name: getattr(run, name) for name in units} | dict(run.fatigue) | {"fatigued": run.fatigued}
+    units |= {name: "1" for name in run.fatigue} | {"fatigued": "1"}
     for name, unit in units.items():
-        data = np.asarray(getattr(run, name), dtype=float)
+        data = np.asarray(arrays[name], dtype=float)
         ds = group.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
         ds.attrs["unit"] = unit
     for name in ("q", "qdot", "tau_plus", "tau_minus"):
         group[name].attrs["joints"] = list(run.joint_names)
-    for name in ("ma", "mr", "mf", "torque_limits"):
+    for name in (*run.fatigue, "fatigued", "torque_limits"):
         group[name].attrs["actuators"] = list(run.actuator_names)
     group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
     if run.windows is not None:
@@ -158,10 +199,11 @@ def _str_list(values: Any) -> tuple[str, ...]:
 
 
 def _read_run(group: h5py.Group, name: str) -> RunResult:
-    missing = [k for k in ("t", "q", "qdot", "tau_plus", "tau_minus", "ma", "mr", "mf", "cycle_costs", "torque_limits") if k not in group]
+    states = _str_list(group.attrs["fatigue_states"]) if "fatigue_states" in group.attrs else LEGACY_FATIGUE_STATES
+    missing = [k for k in ("t", "q", "qdot", "tau_plus", "tau_minus", *states, "cycle_costs", "torque_limits") if k not in group]
     if missing:
         raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
-    attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items() if k != "urdf"}
+    attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
     attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in attrs.items()}
     return RunResult(
         name=name,
@@ -171,18 +213,22 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         qdot=group["qdot"][()],
         tau_plus=group["tau_plus"][()],
         tau_minus=group["tau_minus"][()],
-        ma=group["ma"][()],
-        mr=group["mr"][()],
-        mf=group["mf"][()],
+        fatigue={s: group[s][()] for s in states},
         cycle_costs=group["cycle_costs"][()],
         torque_limits=group["torque_limits"][()],
         joint_names=_str_list(group["q"].attrs["joints"]),
-        actuator_names=_str_list(group["ma"].attrs["actuators"]),
+        actuator_names=_str_list(group[states[0]].attrs["actuators"]),
         cost_terms=_str_list(group["cycle_costs"].attrs["terms"]),
         cycle_wall_time_s=group["cycle_wall_time_s"][()] if "cycle_wall_time_s" in group else np.zeros(0),
         windows=group["windows"][()] if "windows" in group else None,
         urdf=str(group.attrs.get("urdf", "")),
+        study=_text(group.attrs.get("study", "")),
+        fatigued=group["fatigued"][()] if "fatigued" in group else None,
     )
+
+
+def _text(value: Any) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _copy_except(src: Path, dst: h5py.File, skip: set[str]) -> None:

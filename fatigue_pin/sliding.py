@@ -1,6 +1,6 @@
 """Sliding-horizon (cyclic NMPC) solves: a window of K cycles advancing A cycles at a time.
 
-Paper section 3 / SPEC section 4. One :class:`~fatigue_pin.ocp.FatigueOcp` of K cycles is built
+Paper section 3 / SPEC section 4. One :class:`~fatigue_pin.transcription.Ocp` of K cycles is built
 (and compiled) once; every window re-solves it with new parameters:
 
 * its initial state is the previous window's state at node A * n (n intervals per cycle);
@@ -27,11 +27,15 @@ from typing import Callable
 
 import numpy as np
 
+import json
+from typing import Any
+
 from fatigue_pin.errors import ParameterError
-from fatigue_pin.full import run_attributes, to_run_result
-from fatigue_pin.model import RobotModel
-from fatigue_pin.ocp import FatigueOcp, OcpSettings
+from fatigue_pin.full import OcpBuilder, _states_of, run_attributes, to_run_result
+from fatigue_pin.problem import Problem
 from fatigue_pin.results import WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
+from fatigue_pin.solver import SolverOptions
+from fatigue_pin.transcription import Transcription
 
 Progress = Callable[[str], None]
 
@@ -100,20 +104,42 @@ def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
 
 
 class SlidingHorizon:
-    """A sliding-horizon run of the fatigue OCP.
+    """A sliding-horizon run of a problem.
 
     Args:
-        model: the rigid-body model.
-        settings: OCP settings (``n_cycles`` and ``end_tolerance`` are set from ``sliding``).
+        problem: the problem (its initial state starts the first window).
         sliding: window settings.
+        transcription, solver: discretisation and IPOPT settings.
+        guess: initial guess of the first window (``rest`` or ``physical``).
+        study: the TOML text of the study, stored with the run.
+        labels: attributes stored with the run (e.g. the paper's cost, S and preset).
     """
 
-    def __init__(self, model: RobotModel, settings: OcpSettings | None = None, sliding: SlidingSettings | None = None) -> None:
+    def __init__(self, problem: Problem, sliding: SlidingSettings | None = None, transcription: Transcription | None = None,
+                 solver: SolverOptions | None = None, guess: str = "rest", study: str = "",
+                 labels: dict[str, Any] | None = None) -> None:
         self.sliding = sliding or SlidingSettings()
-        base = settings or OcpSettings()
-        self.settings = base.with_(n_cycles=self.sliding.window, end_tolerance=self.sliding.end_tolerance)
-        self.ocp = FatigueOcp(model, self.settings)
-        self.model = model
+        self.problem = problem
+        self.solver = solver or SolverOptions()
+        self.ocp = OcpBuilder(problem, transcription, self.solver, guess)(self.sliding.window, self.sliding.end_tolerance)
+        self.model = problem.model
+        self.study = study
+        self.labels = dict(labels or {})
+
+    def fingerprint(self) -> str:
+        """What a resumed run must share with the stored one: weights, fatigue parameters, task,
+        window settings (not ``max_cycles``), transcription and the initial state."""
+        s = self.sliding
+        data = {
+            "weights": dict(zip(self.ocp.cost_terms, self.problem.weights.tolist())),
+            "fatigue": {h.name: [h.params.kind, *h.params.as_vector().tolist()] for h in self.problem.actuators.halves},
+            "task": repr(self.problem.task),
+            "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup],
+            "transcription": repr(self.ocp.transcription),
+            "x_init": self.problem.initial_state().tolist(),
+            "model": self.model.name,
+        }
+        return json.dumps(data, sort_keys=True)
 
     # -- window mechanics ------------------------------------------------------------------------
 
@@ -141,11 +167,12 @@ class SlidingHorizon:
         iters = [row[4] for row in state.windows if row[3]][: s.warmup]
         if s.failure_iterations is None or len(iters) < s.warmup:
             return None
-        return int(min(self.settings.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+        return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
 
     def _run_result(self, state: _State, name: str, build_time: float) -> RunResult:
         ocp = self.ocp
-        attrs = run_attributes(ocp, "sliding")
+        attrs = run_attributes(ocp, "sliding", self.labels)
+        attrs["fingerprint"] = self.fingerprint()
         table = np.array(state.windows, dtype=WINDOW_DTYPE)
         converged = int(table["converged"].sum()) if table.size else 0
         attrs.update(
@@ -164,7 +191,7 @@ class SlidingHorizon:
             converged_windows=converged,
         )
         t = np.arange(state.x.shape[0]) * ocp.task.dt
-        return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table)
+        return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table, study=self.study)
 
     def _restore(self, path: Path, name: str) -> _State | None:
         if not path.exists() or name not in list_runs(path):
@@ -172,15 +199,13 @@ class SlidingHorizon:
         run = read_run(path, name)
         if run.windows is None:
             raise ResultFileError(f"run {name!r} in {str(path)!r} has no window table; it is not a sliding-horizon run")
-        for key, mine in (("window", self.sliding.window), ("advance", self.sliding.advance), ("cost", self.settings.cost),
-                          ("S", self.ocp.actuators.halves[0].params.S), ("preset", self.settings.preset)):
-            if run.attrs.get(key) != mine:
-                raise ResultFileError(f"cannot resume run {name!r}: it has {key} = {run.attrs.get(key)!r}, this run {mine!r}")
-        L = self.ocp.layout
-        x = np.zeros((run.t.size, L.nx))
-        x[:, L.q], x[:, L.v] = run.q, run.qdot
-        for state_name, data in (("ma", run.ma), ("mr", run.mr), ("mf", run.mf)):
-            x[:, L.fatigue_index(state_name)] = data
+        if run.attrs.get("fingerprint") != self.fingerprint():
+            stored = json.loads(run.attrs.get("fingerprint") or "{}")
+            mine = json.loads(self.fingerprint())
+            key = next((k for k in mine if stored.get(k) != mine[k]), "settings")
+            raise ResultFileError(f"cannot resume run {name!r} in {str(path)!r}: its {key} differ from this run's "
+                                  f"({stored.get(key)!r} stored, {mine.get(key)!r} now)")
+        x = _states_of(run)
         u = np.hstack([run.tau_plus, run.tau_minus])
         windows = [tuple(row) for row in run.windows.tolist()]
         return _State(x, u, run.cycle_costs, run.cycle_wall_time_s, windows, bool(run.attrs.get("finished", False)))
@@ -199,7 +224,7 @@ class SlidingHorizon:
 
         Args:
             out: HDF5 file that receives the run after every window (``None``: memory only).
-            name: run group name (default ``sliding/<cost>_S<S>``).
+            name: run group name (default ``sliding/run``).
             resume: continue the run stored under ``name`` in ``out``.
             progress: called with one line per window.
             stop_after: solve at most this many windows in this call (for tests and batching).
@@ -207,8 +232,7 @@ class SlidingHorizon:
         Returns:
             The stitched :class:`RunResult` (also in ``out``).
         """
-        S = self.ocp.actuators.halves[0].params.S
-        name = name or f"sliding/{self.settings.cost}_S{S:g}"
+        name = name or "sliding/run"
         path = Path(out) if out is not None else None
         n, A, K = self._n, self.sliding.advance, self.sliding.window
         ocp = self.ocp
