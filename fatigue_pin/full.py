@@ -182,6 +182,11 @@ def _search_name(name: str) -> str:
     return name.replace("/", "_")
 
 
+def step_run_name(name: str, n: int) -> str:
+    """Name of the stored converged solution with ``n`` cycles of the search for run ``name``."""
+    return f"searched/{_search_name(name)}/N{n}"
+
+
 def max_repetitions(
     problem: Problem,
     transcription: Transcription | None = None,
@@ -204,7 +209,7 @@ def max_repetitions(
         guess: initial guess of the first solve.
         progress: called with one line per step.
         out: HDF5 file; after every solve the search table (``/search/<name>``) and the converged
-            solution of that N (run ``<name>/N<n>``) are written, and the best run as ``name``.
+            solution of that N (run :func:`step_run_name`) are written, and the best run as ``name``.
         name: run name of the best solution.
         resume: continue the search stored in ``out`` (same problem), re-solving nothing already done.
     """
@@ -238,7 +243,7 @@ def max_repetitions(
                 result.max_cycles, result.best = n, (ocp, sol)
         if out is not None:
             if sol.success:
-                run = solution_to_run(ocp, sol, f"{name}/N{n}", study, labels)
+                run = solution_to_run(ocp, sol, step_run_name(name, n), study, labels)
                 write_run(out, run)
                 if n >= max([k for k in solutions] or [0]):
                     best = solution_to_run(ocp, sol, name, study, labels)
@@ -288,7 +293,7 @@ def _restore_search(path: Path, table: str, name: str) -> tuple[dict[int, dict[s
         n = int(row["n_cycles"])
         status = row["status"].decode() if isinstance(row["status"], bytes) else str(row["status"])
         converged = bool(row["converged"])
-        run_name = f"{name}/N{n}"
+        run_name = step_run_name(name, n)
         if converged and run_name not in runs:
             continue  # the table was written but the run was not: solve it again
         done[n] = {"n_cycles": n, "converged": converged, "status": status, "iterations": int(row["iterations"]),

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import h5py
+import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -59,8 +60,8 @@ def run_prefix(run: RunResult | str) -> str:
 
 def _title(run: RunResult) -> str:
     a = run.attrs
-    bits = [run.name, f"{a.get('horizon', '?')} horizon", f"cost {a.get('cost', '?')}", f"S = {a.get('S', '?')}",
-            f"{run.n_cycles} cycles", "converged" if run.converged else f"NOT CONVERGED ({a.get('status', '?')})"]
+    labels = [f"{k} {a[k]}" for k in ("cost", "S", "preset") if k in a]
+    bits = [run.name, f"{a.get('model', '?')}", f"{a.get('horizon', '?')} horizon", *labels, f"{run.n_cycles} cycles", "converged" if run.converged else f"NOT CONVERGED ({a.get('status', '?')})"]
     return ", ".join(str(b) for b in bits)
 
 
@@ -123,8 +124,9 @@ def plot_joint_angles(run: RunResult, out_dir: Path) -> list[Path]:
 
 
 def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
-    """Stacked ma, mr, mf (bottom to top) of every half, with its target load TL (black steps);
-    TL must stay below 1 - mf, the lower edge of the mf band."""
+    """The fatigue states of every half stacked (bottom to top, in the order the models declare
+    them: ma, mr, mf for Xia's model), with its target load TL (black steps); TL must stay below
+    1 - mf, the lower edge of the mf band."""
     halves = run.actuator_names
     tl = target_loads(run)
     ncols = 2
@@ -132,8 +134,10 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
     fig = _figure(figsize=(12, 3.0 * nrows + 0.6))
     axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False).reshape(-1)
     for h, (ax, name) in enumerate(zip(axes, halves)):
-        ax.stackplot(run.t, run.ma[:, h], run.mr[:, h], run.mf[:, h], labels=("ma", "mr", "mf"),
-                     colors=[STATE_COLORS[k] for k in ("ma", "mr", "mf")], alpha=0.85, lw=0)
+        states = [s for s in run.fatigue_states if np.all(np.isfinite(run.fatigue[s][:, h]))]
+        palette = matplotlib.colormaps["tab10"]
+        ax.stackplot(run.t, *[run.fatigue[s][:, h] for s in states], labels=states,
+                     colors=[STATE_COLORS.get(s, palette(i)) for i, s in enumerate(states)], alpha=0.85, lw=0)
         ax.step(run.t[:-1], tl[:, h], where="post", color="k", lw=0.8, label="TL = tau / tau_limit")
         for c in range(1, run.n_cycles):
             ax.axvline(run.t[run.cycle_slice(c).start], color="w", lw=0.4, alpha=0.6)
@@ -158,7 +162,7 @@ def plot_torque_limits(run: RunResult, out_dir: Path) -> list[Path]:
     fig = _figure(figsize=(9, 5))
     axes = fig.subplots(1, 2, sharex=True)
     for h, name in enumerate(run.actuator_names):
-        values = np.concatenate([[lim[h] * (1.0 - run.mf[0, h])], run.torque_limits[:, h]])
+        values = np.concatenate([[lim[h] * (1.0 - run.fatigued[0, h])], run.torque_limits[:, h]])
         ax = axes[1] if lim[h] < 0 else axes[0]
         ratio = values[0] / values[-1] if values[-1] != 0 else np.inf
         ax.plot(cycles, values, "o-", ms=3, label=f"{name}: {values[0]:.3g} -> {values[-1]:.3g} N m ({ratio:.3g}x lower)")

@@ -303,7 +303,7 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
     chosen = _select_cycles(run, cycles)
     kin = _kinematics(run)
     nodes, times, spans = _frame_nodes(run, chosen)
-    frames = [(_poses(kin, run.q[k]), _colors(kin, run.mf[k])) for k in nodes]
+    frames = [(_poses(kin, run.q[k]), _colors(kin, run.fatigued[k])) for k in nodes]
 
     vis = meshcat.Visualizer(window=_Recorder())
     viz = MeshcatVisualizer(kin.model, None, kin.visual)

@@ -17,21 +17,9 @@ from typing import Callable
 
 import numpy as np
 
-from fatigue_pin.ocp import COSTS
+from fatigue_pin.paper import COSTS, PAPER_MINUTES_S0, PAPER_REPETITIONS
 
 Progress = Callable[[str], None]
-
-#: SPEC section 5: the paper's repetitions (with S = 10, without stabiliser S = 0).
-PAPER_REPETITIONS = {
-    ("full", 10.0): {"fatigue-torque": 32, "fatigue": 32, "torque": 32},
-    ("full", 0.0): {"fatigue-torque": 20, "fatigue": 18, "torque": 14},
-    ("sliding", 10.0): {"fatigue-torque": 21, "fatigue": 20, "torque": 20},
-    ("sliding", 0.0): {"fatigue-torque": 21, "fatigue": 20, "torque": 9},
-}
-#: SPEC section 5: the paper's solve times (minutes) with S = 0.
-PAPER_MINUTES_S0 = {("full", c): v for c, v in zip(COSTS, (41.8, 11.7, 1.70))} | {
-    ("sliding", c): v for c, v in zip(COSTS, (10.0, 9.9, 0.39))
-}
 
 
 @dataclass(frozen=True)
@@ -51,24 +39,32 @@ class Job:
         return f"{self.horizon}/{self.cost}_S{self.S:g}"
 
 
+    def study(self):
+        """The job as a study of the paper's curl."""
+        from fatigue_pin.paper import curl_study
+
+        horizon = "max-cycles" if self.horizon == "full" else "sliding"
+        bound = self.n_max if horizon == "max-cycles" else self.max_cycles
+        return curl_study(horizon, self.cost, self.preset, self.S, max_cycles=bound)
+
+
+def _one_thread_per_worker() -> None:
+    """Worker-process initialiser: one OpenMP thread per worker (the parent is left unchanged)."""
+    os.environ["OMP_NUM_THREADS"] = "1"
+
+
 def _run_job(job: Job) -> dict[str, object]:
     """Run one job in a worker process (no progress output; results go to the job's file)."""
-    from fatigue_pin.full import max_repetitions
-    from fatigue_pin.model import load_model
-    from fatigue_pin.ocp import OcpSettings
-    from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
+    from fatigue_pin.study import run_study
 
-    model = load_model()
-    settings = OcpSettings(cost=job.cost, S=job.S, preset=job.preset)
     t0 = time.perf_counter()
+    result = run_study(job.study(), job.out)
     if job.horizon == "full":
-        result = max_repetitions(model, settings, n_max=job.n_max, out=job.out)
         reps = result.max_cycles
         solve = float(sum(r["wall_time_s"] for r in result.tried))
     else:
-        run = SlidingHorizon(model, settings, SlidingSettings(max_cycles=job.max_cycles)).run(job.out)
-        reps = int(run.attrs["repetitions"])
-        solve = float(run.attrs["wall_time_s"])
+        reps = int(result.attrs["repetitions"])
+        solve = float(result.attrs["wall_time_s"])
     return {"label": job.label, "horizon": job.horizon, "cost": job.cost, "S": job.S, "repetitions": reps,
             "solve_time_s": solve, "elapsed_s": time.perf_counter() - t0, "file": str(job.out)}
 
@@ -98,21 +94,20 @@ def demo(out: str | Path = "results/demo", progress: Progress = print, max_cycle
 
     Returns the paths written: ``h5``, ``figures`` (folder) and ``replay`` (HTML).
     """
-    from fatigue_pin.model import load_model
-    from fatigue_pin.ocp import OcpSettings
+    from fatigue_pin.paper import curl_study
     from fatigue_pin.plots import plot_file
     from fatigue_pin.replay import export_html
-    from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
+    from fatigue_pin.results import check_output
+    from fatigue_pin.study import run_study
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     h5 = out / "sliding.h5"
-    model = load_model()
+    check_output(h5)
+    study = curl_study("sliding", max_cycles=max_cycles)
+    model = study.model()
     progress(model.summary())
     progress("building the 3-cycle window OCP (compiled once per machine, then cached) ...")
-    runner = SlidingHorizon(model, OcpSettings(), SlidingSettings(max_cycles=max_cycles))
-    progress(f"built in {runner.ocp.build_time_s:.1f} s; solving windows until the arm cannot curl any more")
-    run = runner.run(h5, progress=progress)
+    run = run_study(study, h5, progress=progress)
     progress(f"{run.attrs['repetitions']} repetitions; {run.attrs['wall_time_s']:.1f} s of solving")
     figures = out / "figures"
     for path in plot_file(h5, figures):
@@ -157,11 +152,10 @@ def reproduce(
         for h in ("sliding", "full") for S in stabilisers for c in COSTS
     ]
     workers = max(1, min(jobs or os.cpu_count() or 1, len(job_list)))
-    if workers > 1:
-        os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core per worker
     progress(f"{len(job_list)} OCP runs on {workers} processes ...")
     rows: list[dict[str, object]] = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    init = _one_thread_per_worker if workers > 1 else None
+    with ProcessPoolExecutor(max_workers=workers, initializer=init) as pool:
         futures = {pool.submit(_run_job, job): job for job in job_list}
         for fut in as_completed(futures):
             job = futures[fut]

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -288,6 +289,41 @@ def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs:
             ds.attrs[key] = _as_attr(value)
 
     _atomic_rewrite(Path(path), set(), fill)
+
+
+def check_output(path: str | Path) -> Path:
+    """Check, before any work, that ``path`` can receive a result file.
+
+    Its folder must exist (or be creatable) and be writable, ``path`` must not be a folder, and
+    an existing file must be an HDF5 file (runs are added to it).
+
+    Raises:
+        ResultFileError: naming the path and what is wrong.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ResultFileError(f"output {str(path)!r} is a folder; expected the path of an HDF5 result file")
+    if path.exists():
+        if not h5py.is_hdf5(path):
+            raise ResultFileError(f"output {str(path)!r} exists and is not an HDF5 file; expected a new path or a result file")
+        if not os.access(path, os.W_OK):
+            raise ResultFileError(f"output {str(path)!r} is not writable")
+    folder = path.parent
+    existing = folder
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ResultFileError(f"output folder {str(folder)!r} cannot be created: {str(existing)!r} is not a folder")
+    probe = existing if existing != folder else folder
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ResultFileError(f"output folder {str(probe)!r} is not writable; expected a folder you can write to")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_"):
+            pass
+    except OSError as exc:
+        raise ResultFileError(f"output folder {str(folder)!r} is not writable ({exc.strerror or exc})") from None
+    return path
 
 
 def _open(path: str | Path) -> h5py.File:

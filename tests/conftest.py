@@ -1,12 +1,19 @@
-"""Shared fixtures: the arm26 model and small versions of the curl OCP."""
+"""Shared fixtures: the arm26 model and small versions of the paper's curl."""
 
 from __future__ import annotations
 
 import pytest
 
+from fatigue_pin.full import OcpBuilder
 from fatigue_pin.model import load_model
-from fatigue_pin.ocp import CyclicTask, OcpSettings
-from fatigue_pin.solver import SolverOptions
+from fatigue_pin.paper import curl_study
+
+
+def small_curl(horizon: str = "full", cost: str = "fatigue-torque", preset: str = "paper", S: float = 10.0, **kwargs):
+    """The paper's curl with 10 intervals per cycle and 2 RK4 substeps, evaluated without
+    compiling: solves in about a second."""
+    kwargs.setdefault("solver", {"compile": False})
+    return curl_study(horizon, cost, preset, S, intervals_per_cycle=10, substeps=2, **kwargs)
 
 
 @pytest.fixture(scope="session")
@@ -15,7 +22,17 @@ def arm26():
 
 
 @pytest.fixture(scope="session")
-def small_settings() -> OcpSettings:
-    """The paper's curl with 10 intervals per cycle and 2 RK4 substeps, evaluated without
-    compiling: solves in about a second."""
-    return OcpSettings(task=CyclicTask(intervals_per_cycle=10), substeps=2, solver=SolverOptions(compile=False))
+def small_study():
+    return small_curl()
+
+
+@pytest.fixture(scope="session")
+def small_problem(arm26, small_study):
+    return small_study.problem(arm26)
+
+
+@pytest.fixture(scope="session")
+def build(small_problem, small_study):
+    """``build(n_cycles, **changes)``: an Ocp of the small curl (interval functions shared)."""
+    builder = OcpBuilder(small_problem, small_study.transcription(), small_study.solver())
+    return builder
