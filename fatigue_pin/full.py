@@ -169,7 +169,7 @@ class SearchResult:
         tried: one row per N tried, in order: n_cycles, converged, status, iterations, wall_time_s.
         best: the converged solution with ``max_cycles`` cycles, and its OCP (None when resumed
             from a file and the best N was not solved again; read it from the file).
-        run: the best run as a :class:`RunResult`, when one converged.
+        run: the best run as stored in ``out`` (None without ``out``).
     """
 
     max_cycles: int
@@ -276,8 +276,6 @@ def max_repetitions(
         result.best = None
     if out is not None and low > 0 and name in list_runs(out):
         result.run = read_run(out, name)
-    elif result.best is not None:
-        result.run = solution_to_run(*result.best, name, study, labels)
     return result
 
 

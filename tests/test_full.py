@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 import fatigue_pin.full as full
-from fatigue_pin.full import resample_guess, max_repetitions, solution_to_run
-from fatigue_pin.ocp import FatigueOcp
+from fatigue_pin.full import max_repetitions, resample_guess, solution_to_run, step_run_name
 from fatigue_pin.results import read_run, read_search
 
 
@@ -22,52 +21,81 @@ class _FakeOcp:
     limit = 5
     guesses: list = []
 
-    def __init__(self, model, settings):
-        self.settings, self.build_time_s = settings, 0.0
+    def __init__(self, n_cycles):
+        self.n_cycles, self.build_time_s = n_cycles, 0.0
 
     def solve(self, guess=None):
         _FakeOcp.guesses.append(guess is not None)
-        n = self.settings.n_cycles
-        return _FakeSolution(n, n <= _FakeOcp.limit)
+        sol = _FakeSolution(self.n_cycles, self.n_cycles <= _FakeOcp.limit)
+        sol.x = sol.u = None
+        return sol
 
 
-def test_search_gallops_then_bisects(monkeypatch, small_settings):
-    monkeypatch.setattr(full, "FatigueOcp", _FakeOcp)
+class _FakeBuilder:
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def __call__(self, n, end_tolerance=None):
+        return _FakeOcp(n)
+
+
+def test_search_gallops_then_bisects(monkeypatch):
+    monkeypatch.setattr(full, "OcpBuilder", _FakeBuilder)
     monkeypatch.setattr(full, "resample_guess", lambda ocp, sol: "guess")
     _FakeOcp.guesses = []
-    result = max_repetitions(None, small_settings, n_max=64)
+    result = max_repetitions(None, n_max=64)
     assert result.max_cycles == 5
     assert [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 6, 5]
     assert _FakeOcp.guesses == [False, True, True, True, True, True]  # warm-started after the first
 
 
-def test_search_stops_at_n_max(monkeypatch, small_settings):
-    monkeypatch.setattr(full, "FatigueOcp", _FakeOcp)
+def test_search_without_a_cap_gallops_until_a_failure(monkeypatch):
+    monkeypatch.setattr(full, "OcpBuilder", _FakeBuilder)
+    monkeypatch.setattr(full, "resample_guess", lambda ocp, sol: "guess")
+    _FakeOcp.limit = 40
+    try:
+        result = max_repetitions(None, n_max=None)
+    finally:
+        _FakeOcp.limit = 5
+    assert result.max_cycles == 40 and [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 16, 32, 64, 48, 40, 44, 42, 41]
+
+
+def test_search_stops_at_n_max(monkeypatch):
+    monkeypatch.setattr(full, "OcpBuilder", _FakeBuilder)
     monkeypatch.setattr(full, "resample_guess", lambda ocp, sol: "guess")
     _FakeOcp.limit = 100
     try:
-        result = max_repetitions(None, small_settings, n_max=12)
+        result = max_repetitions(None, n_max=12)
     finally:
         _FakeOcp.limit = 5
     assert result.max_cycles == 12 and [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 12]
 
 
-def test_real_search_on_a_small_problem(arm26, small_settings, tmp_path):
-    """S = 10, fatigue-torque, 10 intervals per cycle, capped at 3 cycles: all converge."""
+def test_real_search_on_a_small_problem(small_study, small_problem, tmp_path):
+    """S = 10, fatigue-torque, 10 intervals per cycle, capped at 3 cycles: all converge; every
+    converged N is stored, and a resumed search solves nothing again and gives the same result."""
     out = tmp_path / "search.h5"
-    result = max_repetitions(arm26, small_settings, n_max=3, out=out)
+    kw = dict(n_max=3, out=out, name="full/fatigue-torque_S10")
+    result = max_repetitions(small_problem, small_study.transcription(), small_study.solver(), **kw)
     assert result.max_cycles == 3 and [r["n_cycles"] for r in result.tried] == [1, 2, 3]
-    table = read_search(out)["fatigue-torque_S10"]
+    table = read_search(out)["full_fatigue-torque_S10"]
     assert list(table["n_cycles"]) == [1, 2, 3] and table["converged"].all()
     run = read_run(out, "full/fatigue-torque_S10")
     assert run.n_cycles == 3 and run.converged
+    assert read_run(out, step_run_name("full/fatigue-torque_S10", 2)).n_cycles == 2
+    lines: list[str] = []
+    again = max_repetitions(small_problem, small_study.transcription(), small_study.solver(), resume=True, progress=lines.append, **kw)
+    assert again.max_cycles == 3
+    assert [(r["n_cycles"], r["iterations"], r["status"]) for r in again.tried] == [(r["n_cycles"], r["iterations"], r["status"]) for r in result.tried]
+    assert not [line for line in lines if line.startswith("N =")]  # nothing solved again
+    assert np.array_equal(read_run(out, "full/fatigue-torque_S10").q, run.q)
 
 
-def test_resample_guess_stretches_cycles_in_time(arm26, small_settings):
-    two = FatigueOcp(arm26, small_settings.with_(n_cycles=2))
+def test_resample_guess_stretches_cycles_in_time(build):
+    two = build(2)
     sol = two.solve()
     n = two.task.intervals_per_cycle
-    four = FatigueOcp(arm26, small_settings.with_(n_cycles=4))
+    four = build(4)
     x, u = resample_guess(four, sol)
     assert x.shape == (4 * n + 1, four.layout.nx) and u.shape == (4 * n, 4)
     # cycles 0, 1 copy cycle 0; cycles 2, 3 copy cycle 1; the last node copies the last node
@@ -75,23 +103,24 @@ def test_resample_guess_stretches_cycles_in_time(arm26, small_settings):
     assert np.allclose(u[3 * n :], sol.u[n:]) and np.allclose(x[3 * n : 4 * n], sol.x[n : 2 * n])
     assert np.allclose(x[-1], sol.x[-1])
     # three cycles from two: cycle c copies cycle floor(2 c / 3) = 0, 0, 1
-    three = FatigueOcp(arm26, small_settings.with_(n_cycles=3))
+    three = build(3)
     _, u3 = resample_guess(three, sol)
     assert np.allclose(u3[n : 2 * n], sol.u[:n]) and np.allclose(u3[2 * n :], sol.u[n:])
 
 
-def test_run_record_has_every_attribute(arm26, small_settings, tmp_path):
+def test_run_record_has_every_attribute(build, tmp_path):
     from fatigue_pin.results import RUN_ATTRIBUTES, write_run
 
-    ocp = FatigueOcp(arm26, small_settings.with_(n_cycles=2))
+    ocp = build(2)
     sol = ocp.solve()
     run = solution_to_run(ocp, sol, "full/test")
     write_run(tmp_path / "r.h5", run)
     back = read_run(tmp_path / "r.h5", "full/test")
     for key in RUN_ATTRIBUTES:
         assert key in back.attrs, key
-    assert back.attrs["horizon"] == "full" and back.attrs["converged"] is True or back.attrs["converged"] == 1
+    assert back.attrs["horizon"] == "full" and bool(back.attrs["converged"]) is True
     assert back.torque_limits.shape == (2, 4)
     assert np.allclose(back.torque_limits[:, 0], 50 * (1 - back.mf[[10, 20], 0]))
     assert back.actuator_names == ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")
+    assert back.fatigue_states == ("ma", "mr", "mf")
     assert "<robot" in back.urdf

@@ -17,8 +17,9 @@ from fatigue_pin.sliding import SlidingHorizon, SlidingSettings, repetitions
 
 
 @pytest.fixture(scope="module")
-def runner(arm26, small_settings):
-    return SlidingHorizon(arm26, small_settings, SlidingSettings(window=3, advance=1, max_cycles=5))
+def runner(small_problem, small_study):
+    return SlidingHorizon(small_problem, SlidingSettings(window=3, advance=1, max_cycles=5), small_study.transcription(),
+                          small_study.solver())
 
 
 @pytest.fixture(scope="module")
@@ -42,10 +43,7 @@ def test_stitched_trajectory_is_continuous(full_run, runner):
     run, _ = full_run
     ocp = runner.ocp
     L = ocp.layout
-    x = np.zeros((run.t.size, L.nx))
-    x[:, L.q], x[:, L.v] = run.q, run.qdot
-    for name, data in (("ma", run.ma), ("mr", run.mr), ("mf", run.mf)):
-        x[:, L.fatigue_index(name)] = data
+    x = L.assemble(run.q, run.qdot, run.fatigue)
     u = np.hstack([run.tau_plus, run.tau_minus])
     p = ocp.actuators.param_vector()
     gaps = [np.max(np.abs(ocp.functions.step(x[k], u[k], p) - x[k + 1])) for k in range(u.shape[0])]
@@ -56,7 +54,7 @@ def test_stitched_trajectory_is_continuous(full_run, runner):
     assert mf[-1] > mf[10] > 0  # fatigue grows over the cycles
 
 
-def test_each_window_starts_from_the_previous_one(runner, small_settings):
+def test_each_window_starts_from_the_previous_one(runner):
     """The window's guess repeats the previous window's second cycle, with continuous fatigue."""
     ocp = runner.ocp
     x0 = ocp.initial_state()
@@ -85,13 +83,10 @@ def test_file_written_after_every_window_and_resume_equals_uninterrupted(full_ru
 KILL_SCRIPT = textwrap.dedent(
     """
     import sys
-    from fatigue_pin.model import load_model
-    from fatigue_pin.ocp import CyclicTask, OcpSettings
-    from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
-    from fatigue_pin.solver import SolverOptions
-    settings = OcpSettings(task=CyclicTask(intervals_per_cycle=10), substeps=2, solver=SolverOptions(compile=False))
-    runner = SlidingHorizon(load_model(), settings, SlidingSettings(max_cycles=int(sys.argv[2])))
-    runner.run(sys.argv[1], resume=True, progress=lambda line: print(line, flush=True))
+    from fatigue_pin.paper import curl_study
+    from fatigue_pin.study import run_study
+    study = curl_study("sliding", max_cycles=int(sys.argv[2]), intervals_per_cycle=10, substeps=2, solver={"compile": False})
+    run_study(study, sys.argv[1], name="sliding/run", resume=True, progress=lambda line: print(line, flush=True))
     """
 )
 
@@ -122,12 +117,14 @@ def test_killed_run_keeps_finished_windows_and_resumes(full_run, tmp_path):
     assert np.allclose(resumed.q, reference.q, atol=1e-9) and np.allclose(resumed.mf, reference.mf, atol=1e-9)
 
 
-def test_resume_refuses_other_settings(full_run, arm26, small_settings):
+def test_resume_refuses_other_settings(full_run, small_study, arm26):
+    from conftest import small_curl
     from fatigue_pin.results import ResultFileError
 
     _, out = full_run
-    other = SlidingHorizon(arm26, small_settings.with_(cost="torque"), SlidingSettings(max_cycles=5))
-    with pytest.raises(ResultFileError, match="cost"):
+    other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(max_cycles=5), small_study.transcription(),
+                           small_study.solver())
+    with pytest.raises(ResultFileError, match="weights"):
         other.run(out, name=read_run(out).name, resume=True)
 
 
