@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fatigue_pin.fatigue import FatigueParams, FatigueTrajectory, simulate
+from fatigue_pin.paper import elbow_params
 
 if TYPE_CHECKING:
     import h5py
@@ -89,7 +90,7 @@ class ForwardStudyConfig:
         precisions: orders of precision of the invariant error.
     """
 
-    params: FatigueParams = field(default_factory=FatigueParams.elbow)
+    params: FatigueParams = field(default_factory=elbow_params)
     TL: float = 0.8
     t_end: float = 60.0
     n_eval: int = 60001

@@ -47,7 +47,7 @@ def make_run(name: str = "full/fatigue_torque", n_cycles: int = 2, n: int = 50, 
         windows = np.array([(i, i, b"Solve_Succeeded", True, 40 + i, 3.0 + i, 1.0) for i in range(n_win)],
                            dtype=WINDOW_DTYPE)
     return RunResult(
-        name=name, attrs=attrs, t=t, q=q, qdot=qdot, tau_plus=tau_plus, tau_minus=tau_minus, ma=ma, mr=mr, mf=mf,
+        name=name, attrs=attrs, t=t, q=q, qdot=qdot, tau_plus=tau_plus, tau_minus=tau_minus, fatigue={"ma": ma, "mr": mr, "mf": mf},
         cycle_costs=costs, torque_limits=(1 - mf[n::n]) * limits, joint_names=("shoulder", "elbow"),
         actuator_names=HALVES, cost_terms=TERMS, cycle_wall_time_s=np.full(n_cycles, 6.0), windows=windows,
         urdf=urdf,
