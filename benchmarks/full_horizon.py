@@ -21,10 +21,8 @@ import argparse
 import os
 import statistics
 
-from fatigue_pin.full import resample_guess
-from fatigue_pin.model import load_model
-from fatigue_pin.ocp import FatigueOcp, OcpSettings
-from fatigue_pin.solver import SolverOptions
+from fatigue_pin.full import OcpBuilder, resample_guess
+from fatigue_pin.paper import curl_study
 
 PAPER_CODE_S_PER_CYCLE = 13.6 / 3
 
@@ -41,7 +39,10 @@ def main() -> None:
     parser.add_argument("--no-compile", action="store_true")
     args = parser.parse_args()
 
-    model = load_model()
+    study = curl_study("full", args.cost, args.preset, args.stabilization,
+                       guess="physical" if args.guess == "physical" else "rest",
+                       solver={"compile": not args.no_compile}, transcription={"parallel": args.parallel})
+    build = OcpBuilder(study.problem(), study.transcription(), study.solver(), study.horizon["guess"])
     print(f"preset {args.preset}, cost {args.cost}, S = {args.stabilization:g}, guess {args.guess}, "
           f"map {args.parallel}, OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, {os.cpu_count()} cores")
     header = (f"{'N':>4} {'build s':>8} {'compile s':>9} {'solve s':>8} {'iter':>5} {'ms/iter':>8} {'ms/iter/cycle':>13} "
@@ -49,10 +50,7 @@ def main() -> None:
     print(header, flush=True)
     previous = None
     for n in sorted(args.cycles):
-        settings = OcpSettings(n_cycles=n, cost=args.cost, S=args.stabilization, preset=args.preset,
-                               guess="physical" if args.guess == "physical" else "rest", parallel=args.parallel,
-                               solver=SolverOptions(compile=not args.no_compile))
-        ocp = FatigueOcp(model, settings)
+        ocp = build(n)
         guess = resample_guess(ocp, previous) if args.guess == "resample" and previous is not None else None
         walls, iters, sol = [], [], None
         for _ in range(args.repeats):

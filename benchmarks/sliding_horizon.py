@@ -20,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.model import load_model
-from fatigue_pin.ocp import OcpSettings
+from fatigue_pin.paper import curl_study
 from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
 
 
@@ -34,10 +33,9 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=1, help="repeat the whole run; medians over runs")
     args = parser.parse_args()
 
-    model = load_model()
+    study = curl_study("sliding", args.cost, args.preset, args.stabilization)
     t0 = time.perf_counter()
-    runner = SlidingHorizon(model, OcpSettings(cost=args.cost, S=args.stabilization, preset=args.preset),
-                            SlidingSettings(max_cycles=args.max_cycles))
+    runner = SlidingHorizon(study.problem(), SlidingSettings(max_cycles=args.max_cycles), study.transcription(), study.solver())
     print(f"build {runner.ocp.build_time_s:.1f} s (compile {runner.ocp.nlp.compile_time_s:.1f} s) in {time.perf_counter() - t0:.1f} s")
     totals, normals, terminals, reps = [], [], [], []
     for r in range(args.runs):

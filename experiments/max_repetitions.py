@@ -2,7 +2,7 @@
 
 Runs ``fatigue_pin.full.max_repetitions`` for every (cost, S), one after the other (each solve
 uses every core), writes one HDF5 file per search into ``--out`` (the search table and the best
-run; rewritten after every N, so an interrupted study keeps what it found) and prints every N
+run; written after every N, so an interrupted study resumes where it stopped) and prints every N
 tried and the summary beside the paper's. Usage::
 
     python experiments/max_repetitions.py --out results/max_repetitions [--preset authors-code]
@@ -20,11 +20,8 @@ import argparse
 import time
 from pathlib import Path
 
-from fatigue_pin.full import max_repetitions
-from fatigue_pin.model import load_model
-from fatigue_pin.ocp import COSTS, PRESETS, OcpSettings
-from fatigue_pin.reproduce import PAPER_REPETITIONS
-from fatigue_pin.solver import SolverOptions
+from fatigue_pin.paper import COSTS, PAPER_REPETITIONS, PRESETS, curl_study
+from fatigue_pin.study import run_study
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -38,16 +35,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     args.out.mkdir(parents=True, exist_ok=True)
-    model = load_model()
     summary = []
     for S in args.stabilization:
         for cost in args.costs:
-            settings = OcpSettings(cost=cost, S=S, preset=args.preset,
-                                   solver=SolverOptions(max_wall_time=args.max_wall_time))
+            study = curl_study("max-cycles", cost, args.preset, S, max_cycles=args.n_max,
+                               solver={"max_wall_time": args.max_wall_time})
             print(f"== {cost}, S = {S:g}, preset {args.preset}", flush=True)
             t0 = time.perf_counter()
             out = args.out / f"full_{cost}_S{S:g}.h5"
-            result = max_repetitions(model, settings, n_max=args.n_max, progress=lambda s: print(s, flush=True), out=out)
+            result = run_study(study, out, progress=lambda s: print(s, flush=True), resume=True)
             solve = sum(float(r["wall_time_s"]) for r in result.tried)
             summary.append((cost, S, result.max_cycles, solve, time.perf_counter() - t0))
     print(f"\nmaximum repetitions, full horizon, preset {args.preset}, N <= {args.n_max}")

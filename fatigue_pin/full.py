@@ -46,6 +46,12 @@ def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None)
         "dt": ocp.task.dt,
         "substeps": ocp.transcription.substeps,
     }
+    # parameters shared by every half (e.g. S of a study with one fatigue model), by name
+    halves = ocp.actuators.halves
+    for key in halves[0].params.param_names:
+        values = {getattr(h.params, key, None) for h in halves}
+        if len(values) == 1 and None not in values:
+            attrs[key] = float(values.pop())
     attrs.update(labels or {})
     return attrs
 

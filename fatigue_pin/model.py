@@ -62,6 +62,16 @@ def example_robot_urdf(name: str) -> Path:
     raise ModelError(f"example-robot-data has no URDF {name!r}; known names: {sorted(EXAMPLE_ROBOTS)}")
 
 
+def package_dirs() -> list[str]:
+    """Folders in which ``package://`` mesh paths of URDFs are resolved: the one holding
+    example-robot-data's packages (``.../share``), when installed."""
+    try:
+        share = example_robot_urdf("ur5").parents[4]
+    except (ModelError, IndexError):
+        return []
+    return [str(share)]
+
+
 @dataclass(frozen=True)
 class RobotModel:
     """A fixed-base rigid-body model with its bounds and CasADi dynamics.

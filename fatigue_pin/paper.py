@@ -137,7 +137,7 @@ def curl_study_dict(
         horizon_table["max_cycles"] = max_cycles
     params = ocp_params(preset_name, S)
     return {
-        "name": f"{cost}_S{S:g}",
+        "name": f"{cost}_S{{fatigue.S}}",
         "model": {"urdf": "arm26"},
         "fatigue": {"model": "xia", **params.as_dict()},
         "task": {
@@ -154,7 +154,7 @@ def curl_study_dict(
         "transcription": {"substeps": substeps, **(transcription or {})},
         "horizon": horizon_table,
         "solver": dict(solver or {}),
-        "labels": {"cost": cost, "preset": preset_name, "S": float(S)},
+        "labels": {"cost": cost, "preset": preset_name},
     }
 
 

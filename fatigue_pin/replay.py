@@ -77,8 +77,13 @@ def build_models(urdf: str = "") -> tuple[Any, Any]:
         from fatigue_pin.model import bundled_urdf
 
         urdf = bundled_urdf().read_text()
+    from fatigue_pin.model import package_dirs
+
     model = pin.buildModelFromXML(urdf)
-    visual = pin.buildGeomFromUrdfString(model, urdf, pin.GeometryType.VISUAL)
+    try:
+        visual = pin.buildGeomFromUrdfString(model, urdf, pin.GeometryType.VISUAL, package_dirs=package_dirs())
+    except ValueError as exc:  # a mesh that cannot be found
+        raise ResultFileError(f"the run's model has visuals that cannot be loaded: {exc}") from None
     return model, visual
 
 

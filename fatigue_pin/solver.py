@@ -1,6 +1,6 @@
 """How an optimal control problem is solved: from a CasADi Opti formulation to IPOPT.
 
-The problem is written with ``casadi.Opti`` (see :mod:`fatigue_pin.ocp`); this module turns it
+The problem is written with ``casadi.Opti`` (see :mod:`fatigue_pin.transcription`); this module turns it
 into an ``nlpsol`` once and re-solves it with new parameter values as often as needed:
 
 1. ``opti.x, opti.p, opti.f, opti.g`` and the parametric ``opti.lbg, opti.ubg`` are taken from
@@ -100,10 +100,6 @@ class SolverOptions:
             raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
         if self.max_wall_time is not None and not self.max_wall_time > 0:
             raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
-        if self.compile and shutil.which(self.compiler) is None:
-            raise ParameterError(
-                f"SolverOptions.compiler = {self.compiler!r} is not on PATH; install a C compiler or set compile=False"
-            )
 
     def ipopt_options(self) -> dict[str, Any]:
         """The option dictionary passed to ``nlpsol('ipopt')``."""
@@ -163,6 +159,10 @@ def _compile_shared(source: Path, target: Path, options: SolverOptions, openmp: 
     ignored and the intervals are evaluated serially). If a ``-march=native`` build fails, the
     flags without it are tried.
     """
+    if shutil.which(options.compiler) is None:
+        raise ParameterError(
+            f"SolverOptions.compiler = {options.compiler!r} is not on PATH; install a C compiler or set compile=False"
+        )
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         tmp_so = Path(tmp) / target.name

@@ -248,6 +248,7 @@ def normalise(data: dict[str, Any]) -> dict[str, Any]:
             raise StudyError(f"horizon.max_cycles = {h['max_cycles']!r}: expected at least the window, cycles = {h['cycles']}")
     if not 0 <= h["end_tolerance"] < 1:
         raise StudyError(f"horizon.end_tolerance = {h['end_tolerance']!r}: expected a fraction in [0, 1)")
+    _fill_placeholders(name, out)  # every placeholder names a key
     return out
 
 
@@ -366,7 +367,9 @@ class Study:
 
     @property
     def name(self) -> str:
-        return self.data["name"]
+        """The study's name with its ``{dotted.key}`` placeholders filled from the study, e.g.
+        ``"curl_S{fatigue.S}"`` -> ``"curl_S10"`` (numbers written with ``%g``)."""
+        return _fill_placeholders(self.data["name"], self.data)
 
     @property
     def horizon(self) -> dict[str, Any]:
@@ -451,6 +454,21 @@ class Study:
         s = dict(self.data["solver"])
         s["compiler_flags"] = tuple(s["compiler_flags"])
         return SolverOptions(**s, cache_dir=Path(cache_dir) if cache_dir else None)
+
+
+def _fill_placeholders(text: str, data: dict[str, Any]) -> str:
+    """``text`` with every ``{a.b}`` replaced by the study's value at dotted key ``a.b``."""
+    import re
+
+    def value(match: re.Match) -> str:
+        node: Any = data
+        for part in match.group(1).split("."):
+            if not isinstance(node, dict) or part not in node:
+                raise StudyError(f"name {text!r}: placeholder {{{match.group(1)}}} is not a key of the study")
+            node = node[part]
+        return f"{node:g}" if _is_number(node) else str(node)
+
+    return re.sub(r"\{([A-Za-z0-9_.\-]+)\}", value, text)
 
 
 def _fatigue_model(table: dict[str, Any], parent: dict[str, Any] | None):
