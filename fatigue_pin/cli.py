@@ -10,6 +10,19 @@ import argparse
 import sys
 from pathlib import Path
 
+from fatigue_pin.errors import FatiguePinError
+
+
+class UsageError(FatiguePinError, ValueError):
+    """A command line that does not parse (unknown command or option, bad value)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (exit code 2), like every other error."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{message} (see '{self.prog} --help')")
+
 
 def _cmd_info(args: argparse.Namespace) -> int:
     from fatigue_pin.model import load_model
@@ -21,7 +34,9 @@ def _cmd_info(args: argparse.Namespace) -> int:
 
 def _cmd_forward(args: argparse.Namespace) -> int:
     from fatigue_pin.forward import run_forward_studies
+    from fatigue_pin.results import check_output_dir
 
+    check_output_dir(args.out)
     result = run_forward_studies(args.out)
     print(result.table)
     return 0
@@ -122,14 +137,20 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     from fatigue_pin.reproduce import demo
+    from fatigue_pin.results import check_output_dir
 
+    check_output_dir(args.out)
     demo(args.out, progress=_say, max_cycles=args.max_cycles)
     return 0
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from fatigue_pin.reproduce import reproduce
+    from fatigue_pin.results import check_output_dir
 
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs}: expected a number of worker processes >= 1")
+    check_output_dir(args.out)
     reproduce(args.out, preset=args.preset, quick=args.quick, jobs=args.jobs, progress=_say)
     return 0
 
@@ -139,6 +160,12 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     from fatigue_pin.results import ResultFileError, read_run
 
     run = read_run(args.file, args.run)
+    if args.html is not None:
+        from fatigue_pin.results import check_output_dir
+
+        if args.html.is_dir():
+            raise ResultFileError(f"--html {str(args.html)!r} is a folder; expected the path of an HTML file")
+        check_output_dir(args.html.parent)
     if args.cycle is not None and not 1 <= args.cycle <= run.n_cycles:
         raise ResultFileError(f"--cycle {args.cycle}: run {run.name!r} has cycles 1 to {run.n_cycles}")
     cycles = None if args.cycle is None else [args.cycle - 1]
@@ -151,10 +178,42 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
 def _cmd_plot(args: argparse.Namespace) -> int:
     from fatigue_pin.plots import plot_file
+    from fatigue_pin.results import check_output_dir
 
+    check_output_dir(args.out)
     for path in plot_file(args.file, args.out):
         print(f"wrote {path}")
     return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from fatigue_pin.sweep import sweep_command
+
+    return sweep_command(args.sweep, args.out, scheduler=args.scheduler, slurm=args.slurm, workers=args.workers,
+                         queue=args.queue, walltime=args.walltime, cores=args.cores, memory=args.memory,
+                         interface=args.interface, cache_dir=args.cache, retries=args.retries, progress=_say)
+
+
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from fatigue_pin.results import ResultFileError, list_runs, read_run
+    from fatigue_pin.verify import VerifyTolerances, verify_run
+
+    tol = VerifyTolerances(gap=args.gap_tol, gap_fatigue=args.gap_fatigue_tol, task=args.task_tol, coupling=args.coupling_tol,
+                           bound=args.bound_tol)
+    if args.all and args.run is not None:
+        raise ResultFileError(f"--all verifies every run of {str(args.file)!r}; do not name one ({args.run!r})")
+    names = list_runs(args.file) if args.all else [read_run(args.file, args.run).name]
+    if not names:
+        raise ResultFileError(f"{str(args.file)!r} holds no OCP run")
+    failed = []
+    for name in names:
+        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=args.rtol, atol=args.atol)
+        print(report.table(), end="\n\n" if len(names) > 1 else "\n", flush=True)
+        if not report.passed:
+            failed.append(name)
+    if len(names) > 1:
+        print(f"{len(names) - len(failed)} of {len(names)} runs passed" + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
 
 
 def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
@@ -178,7 +237,7 @@ def _add_output_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fatigue-pin",
         description="Predictive simulation of motion with actuator fatigue (Pinocchio + 3CC-S + CasADi).",
     )
@@ -248,23 +307,58 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.set_defaults(func=_cmd_plot)
 
+    p = sub.add_parser("sweep", help="run every study of a sweep file (grid / cases over a base study) on Dask; "
+                                     "one result file per study, summary.csv and summary.h5; rerun to resume")
+    p.add_argument("sweep", type=Path, help="sweep file (.toml), docs/sweeps.md")
+    p.add_argument("--out", type=Path, required=True, help="output folder (shared with the workers)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT", help="use this running Dask scheduler")
+    where.add_argument("--slurm", action="store_true", help="start workers as SLURM jobs (dask-jobqueue)")
+    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core); --slurm: at most this many")
+    p.add_argument("--queue", default=None, help="--slurm: partition")
+    p.add_argument("--walltime", default=None, help="--slurm: time limit of each SLURM job (default 01:00:00)")
+    p.add_argument("--cores", type=int, default=None, help="--slurm: cores (single-threaded workers) per SLURM job (default 1)")
+    p.add_argument("--memory", default=None, help="--slurm: memory per SLURM job (default 4GB)")
+    p.add_argument("--interface", default=None, help="--slurm: network interface the scheduler listens on (e.g. ib0)")
+    p.add_argument("--cache", type=Path, default=None, help="folder of compiled code for every job (default ~/.cache/fatigue_pin)")
+    p.add_argument("--retries", type=int, default=2, help="Dask retries of a job that raised a file system error (default 2)")
+    p.set_defaults(func=_cmd_sweep)
+
+    from fatigue_pin.verify import DEFAULT_ATOL, DEFAULT_RTOL, VerifyTolerances
+
+    tol = VerifyTolerances()
+    p = sub.add_parser("verify", help="check a stored run independently (solve_ivp + pinocchio.aba): gaps, task, coupling, bounds, "
+                                      "invariant; exit 1 when a check fails")
+    p.add_argument("file", type=Path, help="HDF5 result file")
+    p.add_argument("run", nargs="?", default=None, help="run name (needed when the file holds several)")
+    p.add_argument("--all", action="store_true", help="verify every run of the file")
+    p.add_argument("--single-shooting", action="store_true", help="also integrate the stored controls over the whole horizon")
+    p.add_argument("--rtol", type=float, default=DEFAULT_RTOL, help=f"solve_ivp (DOP853) rtol (default {DEFAULT_RTOL:g})")
+    p.add_argument("--atol", type=float, default=DEFAULT_ATOL, help=f"solve_ivp (DOP853) atol (default {DEFAULT_ATOL:g})")
+    p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
+    p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")
+    p.add_argument("--task-tol", type=float, default=tol.task, help=f"task targets, ranges, initial state (default {tol.task:g})")
+    p.add_argument("--coupling-tol", type=float, default=tol.coupling, help=f"TL + mf outside [0, 1] (default {tol.coupling:g})")
+    p.add_argument("--bound-tol", type=float, default=tol.bound, help=f"q, qdot, torques, fatigue states (default {tol.bound:g})")
+    p.set_defaults(func=_cmd_verify)
+
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``fatigue-pin`` command."""
-    from fatigue_pin.errors import FatiguePinError
-
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv  # accepted anywhere on the line
-    args = build_parser().parse_args([a for a in argv if a != "--debug"])
-    args.debug = debug
     try:
+        args = build_parser().parse_args([a for a in argv if a != "--debug"])
+        args.debug = debug
         return int(args.func(args) or 0)
-    except FatiguePinError as exc:
-        if args.debug:
+    except (FatiguePinError, OSError) as exc:  # OSError: a file problem no check foresaw
+        if debug:
             raise
-        print(f"fatigue-pin: error: {exc}", file=sys.stderr)
+        text = str(exc) if isinstance(exc, FatiguePinError) or not exc.strerror else \
+            f"{exc.strerror}: {exc.filename!r}" if exc.filename else exc.strerror
+        print("fatigue-pin: error: " + " ".join(text.split()), file=sys.stderr)  # one line
         return 2
     except KeyboardInterrupt:
         print("fatigue-pin: interrupted; finished work is in the output file", file=sys.stderr)

@@ -124,6 +124,8 @@ class FatigueModel:
     param_names: ClassVar[tuple[str, ...]] = ()
     param_units: ClassVar[tuple[str, ...]] = ()
     fatigued_state: ClassVar[str] = "mf"
+    #: What the states of a valid state sum to (Xia: ma + mr + mf = 1), or None if nothing.
+    state_total: ClassVar[float | None] = None
 
     # -- structure (class level) -----------------------------------------------------------------
 
@@ -185,6 +187,21 @@ class FatigueModel:
         these parameters. The default accepts every step; models with a stiff term override it."""
         del dt, method
 
+    def check_state(self, m: np.ndarray, owner: str = "fatigue state", tol: float = 1e-4) -> np.ndarray:
+        """Return ``m`` as a float array (n_states,) if it is a valid state: every state a finite
+        fraction in [0, 1] and, when the model declares :attr:`state_total`, their sum equal to it
+        within ``tol``; otherwise raise ParameterError naming ``owner`` and the states."""
+        m = np.asarray(m, dtype=float).reshape(-1)
+        if m.shape != (self.n_states(),):
+            raise DimensionError(f"{owner} has {m.size} entries; expected {self.n_states()} {list(self.state_names)}")
+        named = ", ".join(f"{n} = {v:g}" for n, v in zip(self.state_names, m))
+        if not np.all(np.isfinite(m)) or np.any(m < -tol) or np.any(m > 1.0 + tol):
+            raise ParameterError(f"{owner}: {named}; expected fractions in [0, 1]")
+        if self.state_total is not None and abs(float(m.sum()) - self.state_total) > tol:
+            raise ParameterError(f"{owner}: {named}; {' + '.join(self.state_names)} = {float(m.sum()):g}, "
+                                 f"expected {self.state_total:g}")
+        return m
+
     def rates(self, m: np.ndarray, TL: float) -> np.ndarray:
         """``dm/dt`` on numbers (1/s), shape (n_states,)."""
         m = np.asarray(m, dtype=float).reshape(-1)
@@ -215,6 +232,7 @@ class XiaFatigue(FatigueModel):
 
     kind: ClassVar[str] = "xia"
     state_names: ClassVar[tuple[str, ...]] = ("ma", "mr", "mf")
+    state_total: ClassVar[float | None] = 1.0
     param_names: ClassVar[tuple[str, ...]] = ("LD", "LR", "F", "R", "S", "r")
     param_units: ClassVar[tuple[str, ...]] = ("1/s", "1/s", "1/s", "1/s", "1/s", "1")
     fatigued_state: ClassVar[str] = "mf"
@@ -575,6 +593,7 @@ class MichaudFatigue(FatigueModel):
 
     kind: ClassVar[str] = "michaud"
     state_names: ClassVar[tuple[str, ...]] = ("ma", "mr", "mf", "E")
+    state_total: ClassVar[float | None] = 1.0
     param_names: ClassVar[tuple[str, ...]] = (
         "LD", "LR", "F", "R", "effort_threshold", "effort_factor", "stabilization_factor"
     )

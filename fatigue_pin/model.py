@@ -222,7 +222,7 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
 
     Raises:
         ModelError: the file is missing or does not parse, the base floats, a joint is unsupported,
-            or a joint has no effort limit.
+            a joint has no effort limit, or a joint moves no mass (zero mass and inertia).
     """
     path = bundled_urdf("arm26") if urdf is None else Path(urdf).expanduser()
     if not path.is_file():
@@ -248,6 +248,11 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
     for name, e in zip(names, effort):
         if not (np.isfinite(e) and e > 0):
             raise ModelError(f"{path}: joint {name!r} has effort limit {e}; expected a finite effort > 0 in its <limit> tag")
+    inertia = np.diag(pin.crba(model, model.createData(), pin.neutral(model)))
+    for name, m in zip(names, inertia):
+        if not (np.isfinite(m) and m > 1e-12):
+            raise ModelError(f"{path}: joint {name!r} moves no mass (inertia {m:g} about its axis); "
+                             "expected the links it moves to have an <inertial> with mass > 0")
     aba, rnea = casadi_dynamics(model)
     return RobotModel(
         name=model.name,

@@ -366,6 +366,10 @@ def plot_file(path: Path, out_dir: Path) -> list[Path]:
     """Every applicable figure of a result file: per run (and a comparison when there are
     several), per max-cycles search, or the forward studies. Returns the files written."""
     path = Path(path)
+    if path.is_dir() and (path / "summary.csv").is_file():  # a sweep's output folder
+        from fatigue_pin.sweep_plots import plot_sweep
+
+        return plot_sweep(path, out_dir)
     runs = list_runs(path)  # also checks that the file is readable HDF5
     if runs:
         loaded = [read_run(path, name) for name in runs]

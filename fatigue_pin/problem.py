@@ -147,7 +147,22 @@ class Problem:
             x = np.asarray(self.x_init, dtype=float).reshape(-1)
             if x.size != self.layout.nx:
                 raise ParameterError(f"x_init has {x.size} entries; expected nx = {self.layout.nx}")
+            self._check_x_init(x)
             object.__setattr__(self, "x_init", x)
+
+    def _check_x_init(self, x: np.ndarray) -> None:
+        """Refuse an initial state with q or qdot outside the model's bounds, or fatigue states
+        that are not a valid state of their half's model (fractions in [0, 1], Xia: summing to 1)."""
+        L, m = self.layout, self.model
+        for label, values, lo, hi in (("q", x[L.q], m.q_lower, m.q_upper), ("qdot", x[L.v], m.v_lower, m.v_upper)):
+            bad = [m.joint_names[j] for j in range(values.size) if not (lo[j] <= values[j] <= hi[j])]
+            if bad:
+                raise ParameterError(f"x_init: {label} = {values.tolist()} is outside the bounds of joints {bad} "
+                                     f"({lo.tolist()} to {hi.tolist()})")
+        k = L.nq + L.nv
+        for half, states in zip(self.actuators.halves, L.half_states):
+            half.params.check_state(x[k : k + len(states)], f"x_init of actuator half {half.name!r}")
+            k += len(states)
 
     @classmethod
     def build(cls, model: RobotModel, fatigue: ParamsSpec, task: Task, costs: Sequence[CostTerm],

@@ -209,8 +209,33 @@ def _report(rows: list[dict[str, object]], forward_table: str, preset: str, quic
             for name in list_runs(path):
                 run = read_run(path, name)
                 lines.append(f"| {name} | {run.invariant_error()[-1].max():.2e} |")
+    lines += ["", "## Independent verification (`fatigue-pin verify`)", "",
+              "Each interval re-integrated from its stored node with scipy DOP853 and numeric pinocchio.aba "
+              "(docs/verify.md); worst values over the run, default tolerances.", "",
+              "| run | gap q, qdot | gap fatigue | coupling violation | invariant | verdict |", "|---|---|---|---|---|---|"]
+    lines += _verify_rows(files[1:])
     lines += ["", "## Figures and replays", "", "Figures: [figures/](figures/). Replays (open in a browser): [replay/](replay/).", ""]
     return "\n".join(lines)
+
+
+def _verify_rows(files: list[Path]) -> list[str]:
+    """One table row of :func:`fatigue_pin.verify.verify_run` figures per run of the files."""
+    from fatigue_pin.results import list_runs, read_run
+    from fatigue_pin.verify import verify_run
+
+    rows = []
+    for path in files:
+        if not path.exists():
+            continue
+        for name in list_runs(path):
+            try:
+                r = verify_run(read_run(path, name))
+            except Exception as exc:  # one unverifiable run must not lose the report
+                rows.append(f"| {name} | | | | | error: {exc} |")
+                continue
+            verdict = "passed" if r.passed else "FAILED: " + ", ".join(c.name for c in r.failures)
+            rows.append(f"| {name} | {r.gap:.1e} | {r.gap_fatigue:.1e} | {r.coupling:.1e} | {r.invariant:.1e} | {verdict} |")
+    return rows
 
 
 def final_invariant_errors(path: Path) -> dict[str, float]:

@@ -21,19 +21,29 @@ Layout (``docs/results.md``)::
                                            converged, iterations, wall_time_s, objective
     /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
 
-Every write builds the whole new file next to the old one and renames it over the old one
-(``os.replace``), so a crash or a kill at any moment leaves either the old or the new file,
-both complete and readable.
+The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
+run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
+layout 1.
+
+Every write takes the file's lock (``flock`` of ``.<name>.lock`` beside it, so concurrent
+writers take turns and none loses another's update), copies the current file's bytes beside it,
+edits only the changed group in the copy, fsyncs it and renames it over the old one
+(``os.replace``), so a crash, a kill or a full disk at any moment leaves either the old or the
+new file, both complete and readable, and a write costs about the same whatever the file holds.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import fcntl
 import json
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import h5py
 import numpy as np
@@ -232,36 +242,142 @@ def _text(value: Any) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-def _copy_except(src: Path, dst: h5py.File, skip: set[str]) -> None:
-    if not src.exists():
-        return
-    with h5py.File(src, "r") as old:
+LAYOUT = 2
+#: The ``format`` attribute of files this version writes.
+FORMAT = f"fatigue_pin.results/{LAYOUT}"
+_FORMAT_PREFIX = "fatigue_pin.results/"
+#: File-creation settings: free space is tracked across sessions, so replacing a run reuses the
+#: space of the old one instead of growing the file.
+_CREATE = {"fs_strategy": "fsm", "fs_persist": True, "fs_threshold": 1}
+
+
+def _layout_of(h5: h5py.File, path: Path) -> int | None:
+    """The layout version of an open file (None: no ``format`` attribute, e.g. forward studies);
+    refuses a newer layout or a foreign format."""
+    if "format" not in h5.attrs:
+        return None
+    fmt = _text(h5.attrs["format"])
+    number = fmt[len(_FORMAT_PREFIX):] if fmt.startswith(_FORMAT_PREFIX) else ""
+    if not number.isdigit():
+        raise ResultFileError(f"{str(path)!r} has format {fmt!r}; expected a fatigue_pin result file ({FORMAT!r})")
+    if int(number) > LAYOUT:
+        raise ResultFileError(f"{str(path)!r} was written by a newer fatigue_pin (layout {int(number)}); "
+                              f"this version reads layouts up to {LAYOUT}")
+    return int(number)
+
+
+def _io_error(path: Path, exc: OSError) -> ResultFileError:
+    """A one-line error for an OSError while writing ``path`` (the previous file is unchanged)."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT) or "No space left" in str(exc):
+        return ResultFileError(f"cannot write {str(path)!r}: the disk is full (no space left on device); "
+                               "the previous file is unchanged")
+    reason = exc.strerror or str(exc).splitlines()[0]
+    return ResultFileError(f"cannot write {str(path)!r}: {reason}; the previous file is unchanged")
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path`` (``flock`` of the sidecar ``.<name>.lock``) so that
+    concurrent writers take turns; each re-reads the file under the lock."""
+    lock = path.with_name(f".{path.name}.lock")
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError as exc:  # a file system without locks (some network mounts): write unlocked
+            if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+                raise
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _clone(src: Path, dst: Path) -> None:
+    """Copy the bytes of ``src`` to ``dst``: a reflink where the file system has them, else a
+    kernel-side copy."""
+    with open(src, "rb") as fin, open(dst, "wb") as fout:
+        try:
+            fcntl.ioctl(fout.fileno(), 0x40049409, fin.fileno())  # FICLONE (btrfs, xfs): instant
+            return
+        except OSError:
+            pass
+    shutil.copyfile(src, dst)  # sendfile / copy_file_range on Linux
+
+
+def _compact(src: Path, dst: Path) -> None:
+    """Rewrite ``src`` object by object into a new file at ``dst`` created with :data:`_CREATE`
+    (files of layout 1, or written without persistent free-space tracking; once per file),
+    naming the fatigue states of runs that predate ``fatigue_states``."""
+    with h5py.File(src, "r") as old, h5py.File(dst, "w", **_CREATE) as new:
         for key, value in old.attrs.items():
-            dst.attrs[key] = value
+            new.attrs[key] = value
         for key in old:
-            old.copy(old[key], dst, name=key)
-    for key in skip:  # run names may be paths such as "sliding/torque_S10"
-        if key in dst:
-            del dst[key]
+            old.copy(old[key], new, name=key)
+        runs: list[str] = []
+        new.visititems(lambda key, obj: runs.append(key) if isinstance(obj, h5py.Group) and "t" in obj and "q" in obj else None)
+        for key in runs:
+            if "fatigue_states" not in new[key].attrs:
+                new[key].attrs["fatigue_states"] = [s for s in LEGACY_FATIGUE_STATES if s in new[key]]
+
+
+def _prepare(path: Path, tmp: Path) -> None:
+    """Put at ``tmp`` a copy of ``path`` (an empty new file if there is none) to be edited."""
+    if not path.exists():
+        h5py.File(tmp, "w", **_CREATE).close()
+        return
+    with _open(path) as old:  # refuses a damaged file, a foreign one or a newer layout
+        layout = _layout_of(old, path)
+        persistent = bool(old.id.get_create_plist().get_file_space_strategy()[1])
+    if layout == LAYOUT and persistent:
+        _clone(path, tmp)
+    else:
+        _compact(path, tmp)
+
+
+def _fsync(path: Path, directory: bool = False) -> None:
+    fd = os.open(path, os.O_RDONLY if directory else os.O_RDWR)
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not directory:
+            raise
+    finally:
+        os.close(fd)
 
 
 def _atomic_rewrite(path: Path, skip: set[str], fill: Any) -> None:
-    """Write ``path`` anew: everything from the old file except the groups in ``skip``, then
-    ``fill(h5file)``; the new file replaces the old one only once it is complete."""
+    """Change ``path``: delete the groups in ``skip``, then ``fill(h5file)``.
+
+    Under the file's lock, the current file is copied byte for byte beside it (``FILE.tmp``), the
+    copy is edited with h5py, flushed and fsynced, and renamed over the original
+    (``os.replace``). A write costs a copy of the file's bytes plus the new data, whatever the
+    file holds; a kill, a crash or a full disk at any moment leaves the previous file unchanged.
+
+    Raises:
+        ResultFileError: the existing file cannot be read (damaged, not HDF5, newer layout), or
+            the write fails (full disk, permissions), naming the path.
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     try:
-        with h5py.File(tmp, "w") as h5:
-            _copy_except(path, h5, skip)
-            fill(h5)
-            h5.attrs["format"] = "fatigue_pin.results/1"
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with _locked(path):
+            try:
+                _prepare(path, tmp)
+                with h5py.File(tmp, "a") as h5:
+                    for key in skip:  # run names may be paths such as "sliding/torque_S10"
+                        if key in h5:
+                            del h5[key]
+                    fill(h5)
+                    h5.attrs["format"] = FORMAT
+                _fsync(tmp)
+                os.replace(tmp, path)
+                _fsync(path.parent, directory=True)
+            finally:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+    except OSError as exc:
+        raise _io_error(path, exc) from exc
 
 
 def write_run(path: str | Path, run: RunResult) -> Path:
@@ -294,8 +410,10 @@ def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs:
 def check_output(path: str | Path) -> Path:
     """Check, before any work, that ``path`` can receive a result file.
 
-    Its folder must exist (or be creatable) and be writable, ``path`` must not be a folder, and
-    an existing file must be an HDF5 file (runs are added to it).
+    Its folder must exist (or be creatable) and be writable, ``path`` must not be a folder, an
+    existing file must be a result file this version can read and extend (HDF5, complete, not
+    of a newer layout), and the disk must have room for a copy of it (every write copies the
+    file beside it before renaming it over the old one).
 
     Raises:
         ResultFileError: naming the path and what is wrong.
@@ -303,58 +421,131 @@ def check_output(path: str | Path) -> Path:
     path = Path(path)
     if path.is_dir():
         raise ResultFileError(f"output {str(path)!r} is a folder; expected the path of an HDF5 result file")
+    size = 0
     if path.exists():
+        if not path.is_file():
+            raise ResultFileError(f"output {str(path)!r} is not a regular file; expected the path of an HDF5 result file")
+        if not os.access(path, os.R_OK):
+            raise ResultFileError(f"output {str(path)!r} is not readable (permission denied); runs are added to an existing file")
         if not h5py.is_hdf5(path):
             raise ResultFileError(f"output {str(path)!r} exists and is not an HDF5 file; expected a new path or a result file")
+        with _open(path):  # damaged or of a newer layout: refused now, not after the solve
+            pass
         if not os.access(path, os.W_OK):
             raise ResultFileError(f"output {str(path)!r} is not writable")
+        size = path.stat().st_size
     folder = path.parent
+    _check_folder(folder, f"output folder {str(folder)!r}")
+    _check_space(folder, size + (64 << 10), f"adding a run to {str(path)!r}")
+    return path
+
+
+def check_output_dir(path: str | Path) -> Path:
+    """Check, before any work, that the folder ``path`` can receive output files: it is a folder
+    (created if missing) that can be written to, on a disk that is not full.
+
+    Raises:
+        ResultFileError: naming the path and what is wrong.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ResultFileError(f"output {str(path)!r} is a file; expected a folder (created if missing)")
+    _check_folder(path, f"output folder {str(path)!r}")
+    _check_space(path, 1 << 20, f"writing to {str(path)!r}")
+    return path
+
+
+def _check_folder(folder: Path, label: str) -> None:
+    """Create ``folder`` if needed and write a small probe file in it."""
     existing = folder
     while not existing.exists():
         existing = existing.parent
     if not existing.is_dir():
-        raise ResultFileError(f"output folder {str(folder)!r} cannot be created: {str(existing)!r} is not a folder")
-    probe = existing if existing != folder else folder
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise ResultFileError(f"output folder {str(probe)!r} is not writable; expected a folder you can write to")
+        raise ResultFileError(f"{label} cannot be created: {str(existing)!r} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ResultFileError(f"{label} is not writable; expected a folder you can write to")
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_"):
-            pass
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_") as probe:
+            probe.write(b"\0" * 4096)
+            probe.flush()
+            os.fsync(probe.fileno())
     except OSError as exc:
-        raise ResultFileError(f"output folder {str(folder)!r} is not writable ({exc.strerror or exc})") from None
-    return path
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise ResultFileError(f"{label} is on a full disk (no space left on device)") from None
+        raise ResultFileError(f"{label} is not writable: a file cannot be created in it ({exc.strerror or exc})") from None
+
+
+def _check_space(folder: Path, need: int, what: str) -> None:
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < need:
+        raise ResultFileError(f"the disk of {str(folder)!r} is full: {free // 1024} KiB free; "
+                              f"{what} needs at least {-(-need // 1024)} KiB")
 
 
 def _open(path: str | Path) -> h5py.File:
+    """Open a result file for reading; every way it can be unusable is a one-line ResultFileError."""
     path = Path(path)
-    if not path.is_file():
-        raise ResultFileError(f"result file not found: {str(path)!r}")
+    if path.is_dir():
+        raise ResultFileError(f"{str(path)!r} is a folder; expected an HDF5 result file")
+    if not path.exists():
+        raise ResultFileError(f"result file not found: {str(path)!r}; expected an HDF5 file written by fatigue_pin")
+    if not os.access(path, os.R_OK):
+        raise ResultFileError(f"result file {str(path)!r} is not readable (permission denied)")
+    if not h5py.is_hdf5(path):
+        raise ResultFileError(f"{str(path)!r} is not a readable HDF5 file: it lacks the HDF5 signature; "
+                              "expected a result file written by fatigue_pin")
     try:
-        return h5py.File(path, "r")
+        h5 = h5py.File(path, "r")
     except OSError as exc:
-        raise ResultFileError(f"{str(path)!r} is not a readable HDF5 file: {exc}") from exc
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ResultFileError(f"{str(path)!r} is not a readable HDF5 file: it is truncated or damaged ({reason}); "
+                              "expected a complete result file") from None
+    try:
+        _layout_of(h5, path)
+    except BaseException:
+        h5.close()
+        raise
+    return h5
+
+
+def _run_names(h5: h5py.File) -> list[str]:
+    names: list[str] = []
+    h5.visititems(lambda key, obj: names.append(key) if isinstance(obj, h5py.Group) and "t" in obj and "q" in obj else None)
+    return sorted(names)
 
 
 def list_runs(path: str | Path) -> list[str]:
     """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted."""
     with _open(path) as h5:
-        names: list[str] = []
-        h5.visititems(lambda key, obj: names.append(key) if isinstance(obj, h5py.Group) and "t" in obj and "q" in obj else None)
-    return sorted(names)
+        try:
+            return _run_names(h5)
+        except (OSError, RuntimeError) as exc:
+            raise ResultFileError(f"{str(path)!r} is damaged: its groups cannot be listed ({exc})") from None
 
 
 def read_run(path: str | Path, name: str | None = None) -> RunResult:
     """Read one run; ``name`` may be omitted when the file holds exactly one run."""
-    runs = list_runs(path)
-    if name is None:
-        if len(runs) != 1:
-            raise ResultFileError(f"{str(path)!r} holds {len(runs)} runs {runs}; choose one by name")
-        name = runs[0]
-    if name not in runs:
-        raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {runs}")
     with _open(path) as h5:
-        return _read_run(h5[name], name)
+        runs = _run_names(h5)
+        if name is None:
+            if len(runs) != 1:
+                raise ResultFileError(f"{str(path)!r} holds {len(runs)} runs {runs}; choose one by name")
+            name = runs[0]
+        if name not in runs:
+            shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]
+            raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {shown}")
+        try:
+            return _read_run(h5[name], name)
+        except ResultFileError:
+            raise
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ResultFileError(f"run {name!r} in {str(path)!r} cannot be read ({reason}); the file is damaged") from None
 
 
 def read_search(path: str | Path) -> dict[str, np.ndarray]:
@@ -362,7 +553,10 @@ def read_search(path: str | Path) -> dict[str, np.ndarray]:
     with _open(path) as h5:
         if "search" not in h5:
             return {}
-        return {k: h5["search"][k][()] for k in h5["search"]}
+        try:
+            return {k: h5["search"][k][()] for k in h5["search"]}
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            raise ResultFileError(f"the search tables of {str(path)!r} cannot be read ({exc}); the file is damaged") from None
 
 
 def config_json(obj: Any) -> str:

@@ -119,6 +119,48 @@ RANGE_KEYS: dict[str, Check] = {
     "lower": (_is_number, "a joint position (rad or m)", REQUIRED),
     "upper": (_is_number, "a joint position (rad or m)", REQUIRED),
 }
+#: Values a key must take beyond its type (the message is the schema's description).
+RANGES: dict[str, Callable[[Any], bool]] = {
+    "model.gravity": lambda v: len(v) == 3,
+    "task.cycle_duration": lambda v: v > 0,
+    "task.intervals_per_cycle": lambda v: v >= 1,
+    "task.final_node_offset": lambda v: v in (0, -1),
+    "transcription.substeps": lambda v: v >= 1,
+    "transcription.integrator": lambda v: v == "rk4",
+    "transcription.parallel": lambda v: v in ("auto", "serial", "openmp", "thread"),
+    "horizon.advance": lambda v: v >= 1,
+    "horizon.guess": lambda v: v in ("rest", "physical"),
+    "horizon.failure_iterations": lambda v: v >= 1,
+    "horizon.min_iterations": lambda v: v >= 0,
+    "horizon.warmup": lambda v: v >= 0,
+    "solver.tol": lambda v: v > 0,
+    "solver.constr_viol_tol": lambda v: v > 0,
+    "solver.max_iter": lambda v: v >= 0,
+    "solver.max_wall_time": lambda v: v > 0,
+    "solver.print_level": lambda v: 0 <= v <= 12,
+    "solver.mu_init": lambda v: v > 0,
+    "solver.perturb_dec_fact": lambda v: 0 < v < 1,
+}
+TARGET_RANGES: dict[str, Callable[[Any], bool]] = {"at": lambda v: 0 <= v < 1, "tolerance": lambda v: v >= 0}
+
+
+def _check_ranges(out: dict[str, Any]) -> None:
+    """Refuse values of the right type outside their range (a negative duration, a zero
+    tolerance, ...), naming the key and what was expected."""
+    for dotted, ok in RANGES.items():
+        section, key = dotted.split(".")
+        value = out[section].get(key)
+        if value is not None and not ok(value):
+            raise StudyError(f"{dotted} = {value!r}: expected {SCHEMA[section][key][1]}")
+    for i, target in enumerate(out["task"]["targets"]):
+        for key, ok in TARGET_RANGES.items():
+            if not ok(target[key]):
+                raise StudyError(f"task.targets[{i}].{key} = {target[key]!r}: expected {TARGET_KEYS[key][1]}")
+    for i, rng in enumerate(out["task"]["ranges"]):
+        if rng["lower"] > rng["upper"]:
+            raise StudyError(f"task.ranges[{i}]: lower = {rng['lower']!r} > upper = {rng['upper']!r}; expected lower <= upper")
+
+
 TOP_KEYS = ("name", "model", "fatigue", "task", "costs", "transcription", "horizon", "solver", "labels")
 
 
@@ -161,8 +203,8 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
     for key, value in out.items():
         if key not in allowed:
             raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints' or a parameter of {kind!r}: {list(params)}")
-        if key in params and (not _is_number(value) or not math.isfinite(float(value))):
-            raise StudyError(f"{where}.{key} = {value!r}: expected a finite number")
+        if key in params and (not _is_number(value) or not math.isfinite(float(value)) or value < 0):
+            raise StudyError(f"{where}.{key} = {value!r}: expected a finite number >= 0")
         if key == "preset" and not isinstance(value, str):
             raise StudyError(f"{where}.preset = {value!r}: expected a preset name or a JSON file path")
     if "joints" in out:
@@ -248,6 +290,7 @@ def normalise(data: dict[str, Any]) -> dict[str, Any]:
             raise StudyError(f"horizon.max_cycles = {h['max_cycles']!r}: expected at least the window, cycles = {h['cycles']}")
     if not 0 <= h["end_tolerance"] < 1:
         raise StudyError(f"horizon.end_tolerance = {h['end_tolerance']!r}: expected a fraction in [0, 1)")
+    _check_ranges(out)
     _fill_placeholders(name, out)  # every placeholder names a key
     return out
 
@@ -333,8 +376,10 @@ class Study:
     def from_file(cls, path: str | Path, run: str | None = None) -> Study:
         """A study from a ``.toml`` file, or from the run ``run`` of an HDF5 result file."""
         path = Path(path)
+        if path.is_dir():
+            raise StudyError(f"study file {str(path)!r} is a folder; expected a .toml study file or an HDF5 result file")
         if not path.is_file():
-            raise StudyError(f"study file not found: {str(path)!r}")
+            raise StudyError(f"study file not found: {str(path)!r}; expected a .toml study file or an HDF5 result file")
         head = path.read_bytes()[:8]
         if head.startswith(b"\x89HDF"):
             from fatigue_pin.results import read_run

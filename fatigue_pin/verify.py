@@ -30,6 +30,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from fatigue_pin.errors import ParameterError
 from fatigue_pin.results import ResultFileError, RunResult
 
 __all__ = ["VerifyTolerances", "VerifyCheck", "VerifyReport", "verify_run", "numpy_rhs", "DEFAULT_RTOL", "DEFAULT_ATOL"]
@@ -56,7 +57,7 @@ class VerifyTolerances:
     """
 
     gap: float = 1e-3
-    gap_fatigue: float = 1e-4
+    gap_fatigue: float = 1e-5
     task: float = 1e-4
     coupling: float = 1e-4
     bound: float = 1e-4
@@ -65,7 +66,7 @@ class VerifyTolerances:
         for name in ("gap", "gap_fatigue", "task", "coupling", "bound"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"VerifyTolerances.{name} = {value!r}: expected a finite tolerance >= 0")
+                raise ParameterError(f"VerifyTolerances.{name} = {value!r}: expected a finite tolerance >= 0")
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,9 @@ class VerifyReport:
         invariant: worst |1 - sum of states| over nodes and halves; invariant_final: at the last node.
         invariant_sum: the sum used per model kind (e.g. ``xia: ma + mr + mf``).
         rhs_check: worst |numpy rhs - model rates| over the nodes (NaN without a numpy transcription).
+        rk4_residual: worst |RK4(x_k, u_k) - x_{k+1}| with the stored substeps, RK4 written again in
+            numpy (the NLP's own gaps: small when it was solved); NaN when substeps are unknown.
+        rk4_truncation: worst |RK4(x_k, u_k) - exact flow(x_k, u_k)|: how coarse the grid is.
         drift_q, drift_qdot, drift_fatigue, drift_invariant: single-shooting drift (NaN unless asked).
         notes: what was not checked and why.
         tolerances: the tolerances used; rtol, atol: of the reference integration.
@@ -139,6 +143,8 @@ class VerifyReport:
     invariant_final: float
     invariant_sum: str
     rhs_check: float
+    rk4_residual: float
+    rk4_truncation: float
     tolerances: VerifyTolerances
     rtol: float
     atol: float
@@ -306,6 +312,8 @@ def _worst(values: np.ndarray, labels: tuple[str, ...] | list[str], what: str, o
         return 0.0, ""
     flat = np.nan_to_num(values, nan=0.0)
     k, j = np.unravel_index(int(np.argmax(flat)), flat.shape)
+    if not flat[k, j] > 0:
+        return 0.0, ""
     return float(flat[k, j]), _where(int(k) + offset, what, labels[j] if len(labels) > j else "")
 
 
@@ -347,6 +355,18 @@ def _integrate(f: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, dt:
     if not sol.success:
         raise ResultFileError(f"the reference integration failed: {sol.message}")
     return sol.y[:, -1]
+
+
+def _rk4(f: Callable[[float, np.ndarray], np.ndarray], y: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """``steps`` classical Runge-Kutta steps over ``dt`` (the transcription's scheme, written again)."""
+    h = dt / steps
+    for _ in range(steps):
+        k1 = f(0.0, y)
+        k2 = f(0.0, y + h / 2 * k1)
+        k3 = f(0.0, y + h / 2 * k2)
+        k4 = f(0.0, y + h * k3)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return y
 
 
 def _target_loads(run: RunResult, halves: list[_Half]) -> np.ndarray:
@@ -397,7 +417,7 @@ def _task_checks(run: RunResult, pin_model, study_data: dict | None, n: int, N: 
             v = abs(run.q[k, j] - float(tgt["value"])) - float(tgt["tolerance"])
             if v > worst:
                 worst, where = v, f"node {k}, {tgt['joint']} at {float(tgt['value']):.6g}"
-    checks = [VerifyCheck("task targets", max(worst, 0.0), "rad", tol, where)]
+    checks = [VerifyCheck("task targets", worst if worst > 0 else 0.0, "rad", tol, where)]
     worst, where = -math.inf, "no ranges"
     for rng in task["ranges"]:
         j = joint(rng["joint"])
@@ -405,7 +425,7 @@ def _task_checks(run: RunResult, pin_model, study_data: dict | None, n: int, N: 
         k = int(np.argmax(v))
         if v[k] > worst:
             worst, where = float(v[k]), f"node {k}, {rng['joint']} in [{float(rng['lower']):.6g}, {float(rng['upper']):.6g}]"
-    checks.append(VerifyCheck("task ranges", max(worst, 0.0), "rad", tol, where))
+    checks.append(VerifyCheck("task ranges", worst if worst > 0 else 0.0, "rad", tol, where))
     # initial state: q_init (or the phase-0 targets, else 0), qdot = 0, every half rested
     if task.get("q_init") is not None:
         q0 = np.asarray(task["q_init"], dtype=float)
@@ -500,15 +520,34 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         notes.append(f"no numpy transcription of fatigue model(s) {without}: integrated with the model's rates")
 
     # -- multiple-shooting gaps: each interval from its stored node, stored control held
+    # (and, with the stored number of substeps, the transcription's RK4 written again in numpy:
+    # its residual says whether the NLP was solved, its distance to the exact flow how coarse the
+    # grid is)
     gy = np.zeros((N, 2 * nq))
     gm = np.zeros((N, M.shape[1]))
+    res = np.zeros((N, gy.shape[1] + gm.shape[1]))
+    trunc = np.zeros_like(res)
     for k in range(N):
-        gy[k] = np.abs(_integrate(dyn.rigid(tau[k]), Y[k], dt, rtol, atol) - Y[k + 1])
-        if M.shape[1]:
-            gm[k] = np.abs(_integrate(dyn.fatigue(TL[k]), M[k], dt, rtol, atol) - M[k + 1])
+        fy, fm = dyn.rigid(tau[k]), dyn.fatigue(TL[k])
+        ey = _integrate(fy, Y[k], dt, rtol, atol)
+        em = _integrate(fm, M[k], dt, rtol, atol) if M.shape[1] else M[k]
+        gy[k], gm[k] = np.abs(ey - Y[k + 1]), np.abs(em - M[k + 1])
+        if substeps:
+            ry = _rk4(fy, Y[k], dt, substeps)
+            rm = _rk4(fm, M[k], dt, substeps) if M.shape[1] else M[k]
+            res[k] = np.abs(np.concatenate([ry - Y[k + 1], rm - M[k + 1]]))
+            trunc[k] = np.abs(np.concatenate([ry - ey, rm - em]))
     gap_q, at_q = _worst(gy[:, :nq], joints, "interval")
     gap_v, at_v = _worst(gy[:, nq:], joints, "interval")
     gap_m, at_m = _worst(gm, labels_m, "interval")
+    labels_x = [f"q {j}" for j in joints] + [f"qdot {j}" for j in joints] + labels_m
+    if substeps:
+        rk4_res, at_res = _worst(res, labels_x, "interval")
+        rk4_trunc, at_trunc = _worst(trunc, labels_x, "interval")
+    else:
+        rk4_res = rk4_trunc = float("nan")
+        at_res = at_trunc = ""
+        notes.append("no substeps attribute: the transcription's RK4 is not re-evaluated")
     if horizon == "sliding":
         notes.append("sliding horizon: each window's cyclic end condition is not checked (its end nodes are not kept); "
                      "the stitched trajectory's gaps are, joins included")
@@ -552,7 +591,14 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         VerifyCheck(f"invariant |1 - ({name_sum})|", invariant, "1", None, at_inv),
         VerifyCheck("invariant at the last node", inv_final, "1", None, f"node {N}"),
         VerifyCheck("rhs: numpy vs model rates", rhs_err, "1/s", None, "every node"),
+        VerifyCheck(f"RK4 residual ({substeps} substeps, numpy)", rk4_res, "state", None, at_res),
+        VerifyCheck("RK4 truncation (RK4 - exact flow)", rk4_trunc, "state", None, at_trunc),
     ]
+    failing = [c for c in checks if c.name.startswith("gap") and not c.passed]
+    if failing and substeps and rk4_res <= 0.1 * min(c.tolerance for c in failing):
+        notes.append(f"the gaps are the transcription's own RK4 error ({rk4_trunc:.2e} at {at_trunc}): the nodes solve "
+                     f"the discretised problem (RK4 residual {rk4_res:.1e}) but the grid ({substeps} substeps of "
+                     f"{dt / substeps:g} s) is too coarse for the gap tolerance")
     if len(kinds) > 1:
         notes.append(f"invariant sums: {invariant_sum}")
     report = VerifyReport(
@@ -560,7 +606,7 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         gap_q=gap_q, gap_qdot=gap_v, gap_fatigue=gap_m,
         task=max((c.value for c in checks if c.name in ("task targets", "task ranges", "initial state")), default=float("nan")),
         coupling=coupling, bound=max(b_q, b_v, b_t, b_m), invariant=invariant, invariant_final=inv_final,
-        invariant_sum=invariant_sum, rhs_check=rhs_err, tolerances=tol, rtol=rtol, atol=atol, notes=notes,
+        invariant_sum=invariant_sum, rhs_check=rhs_err, rk4_residual=rk4_res, rk4_truncation=rk4_trunc, tolerances=tol, rtol=rtol, atol=atol, notes=notes,
     )
 
     # -- single shooting: the stored controls over the whole horizon from the stored initial state
