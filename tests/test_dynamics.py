@@ -121,11 +121,17 @@ def test_gravity_of_the_model_is_used(model):
 
 def test_backend_is_available():
     """The compiled bridge (or pinocchio.casadi) must be there: no silent skip of the others."""
-    if dynamics.backend_name() == "fatigue_pin._pinocchio_casadi":
+    name = dynamics.backend_name()
+    assert name in ("fatigue_pin._pinocchio_casadi", "pinocchio.casadi")
+    if name == "fatigue_pin._pinocchio_casadi":
         from fatigue_pin import _pinocchio_casadi as ext
 
         assert ext.casadi_version == ca.__version__
         assert ext.pinocchio_version == pin.__version__
+    else:
+        import pinocchio.casadi as cpin
+
+        assert hasattr(cpin, "aba") and hasattr(cpin, "rnea")
 
 
 def test_missing_extension_is_a_model_error(monkeypatch):
