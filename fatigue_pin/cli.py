@@ -46,6 +46,13 @@ def _say(line: str) -> None:
     print(line, flush=True)
 
 
+def _reporter():
+    """Progress on standard output: bars and a live compile line on a terminal, plain lines else."""
+    from fatigue_pin.progress import Reporter
+
+    return Reporter.for_stream(sys.stdout)
+
+
 def _curl_study(args: argparse.Namespace, horizon: str):
     """The paper's curl as a study, from the options of the ``solve`` / ``max-cycles`` shortcuts."""
     from fatigue_pin.paper import curl_study_dict
@@ -71,7 +78,7 @@ def _run(study, args: argparse.Namespace) -> int:
 
     check_output(args.out)
     kind = study.horizon["kind"]
-    result = run_study(study, args.out, name=args.name, resume=getattr(args, "resume", False), progress=_say,
+    result = run_study(study, args.out, name=args.name, resume=getattr(args, "resume", False), progress=_reporter(),
                        cache_dir=getattr(args, "cache", None))
     if kind == "full":
         ok = result.converged
@@ -140,7 +147,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from fatigue_pin.results import check_output_dir
 
     check_output_dir(args.out)
-    demo(args.out, progress=_say, max_cycles=args.max_cycles)
+    demo(args.out, progress=_reporter(), max_cycles=args.max_cycles)
     return 0
 
 
@@ -151,7 +158,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: expected a number of worker processes >= 1")
     check_output_dir(args.out)
-    reproduce(args.out, preset=args.preset, quick=args.quick, jobs=args.jobs, progress=_say)
+    reproduce(args.out, preset=args.preset, quick=args.quick, jobs=args.jobs, progress=_reporter())
     return 0
 
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -22,11 +22,7 @@ from fatigue_pin.results import RunResult, list_runs, read_run, read_search, tor
 from fatigue_pin.solver import SolverOptions
 from fatigue_pin.transcription import IntervalFunctions, Ocp, OcpSolution, Transcription
 
-Progress = Callable[[str], None]
-
-
-def _quiet(_: str) -> None:
-    pass
+from fatigue_pin.progress import Progress, as_reporter
 
 
 def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None) -> dict[str, object]:
@@ -141,28 +137,33 @@ class OcpBuilder:
     """
 
     def __init__(self, problem: Problem, transcription: Transcription | None = None, solver: SolverOptions | None = None,
-                 guess: str = "rest") -> None:
+                 guess: str = "rest", progress: Progress = None) -> None:
         self.problem = problem
         self.transcription = transcription or Transcription()
         self.solver = solver or SolverOptions()
         self.guess = guess
+        self.progress = progress
         self._functions: IntervalFunctions | None = None
 
     def __call__(self, n_cycles: int, end_tolerance: float | None = None) -> Ocp:
-        ocp = Ocp(self.problem, n_cycles, self.transcription, self.solver, end_tolerance, self.guess, self._functions)
+        ocp = Ocp(self.problem, n_cycles, self.transcription, self.solver, end_tolerance, self.guess, self._functions,
+                  progress=self.progress)
         self._functions = ocp.functions
         return ocp
 
 
 def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | None = None, solver: SolverOptions | None = None,
-               guess: str = "rest", progress: Progress = _quiet) -> tuple[Ocp, OcpSolution]:
-    """Build and solve one full-horizon OCP of ``n_cycles`` cycles."""
-    progress(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
-    ocp = OcpBuilder(problem, transcription, solver, guess)(n_cycles)
+               guess: str = "rest", progress: Progress = None) -> tuple[Ocp, OcpSolution]:
+    """Build and solve one full-horizon OCP of ``n_cycles`` cycles (``progress``: a Reporter or
+    a line callback; default quiet)."""
+    rep = as_reporter(progress)
+    rep.line(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
+    ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles)
     compiled = f", compiled in {ocp.nlp.compile_time_s:.1f} s" if ocp.nlp.compile_time_s else ""
-    progress(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")
-    sol = ocp.solve()
-    progress(f"{sol.status}: {sol.iterations} iterations, {sol.wall_time_s:.2f} s, objective {sol.objective:.6g}")
+    rep.line(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")
+    with rep.task(f"solving the {n_cycles}-cycle OCP with IPOPT"):
+        sol = ocp.solve()
+    rep.line(f"{sol.status}: {sol.iterations} iterations, {sol.wall_time_s:.2f} s, objective {sol.objective:.6g}")
     return ocp, sol
 
 
@@ -199,7 +200,7 @@ def max_repetitions(
     solver: SolverOptions | None = None,
     n_max: int | None = None,
     guess: str = "rest",
-    progress: Progress = _quiet,
+    progress: Progress = None,
     out: str | Path | None = None,
     name: str = "full/search",
     study: str = "",
@@ -213,13 +214,15 @@ def max_repetitions(
         transcription, solver: discretisation and IPOPT settings.
         n_max: largest N tried (``None``: gallop until a failure).
         guess: initial guess of the first solve.
-        progress: called with one line per step.
+        progress: a Reporter (a line per step and a bar over the steps) or a line callback.
         out: HDF5 file; after every solve the search table (``/search/<name>``) and the converged
             solution of that N (run :func:`step_run_name`) are written, and the best run as ``name``.
         name: run name of the best solution.
         resume: continue the search stored in ``out`` (same problem), re-solving nothing already done.
     """
-    build = OcpBuilder(problem, transcription, solver, guess)
+    rep = as_reporter(progress)
+    build = OcpBuilder(problem, transcription, solver, guess, rep)
+    bar = rep.bar(None, "search steps", "solve")
     solutions: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     done: dict[int, dict[str, object]] = {}
     result = SearchResult(max_cycles=0)
@@ -227,7 +230,7 @@ def max_repetitions(
     if resume and out is not None and Path(out).exists():
         done, solutions = _restore_search(Path(out), table, name)
         if done:
-            progress(f"resuming the search {name!r}: N = {sorted(done)} already done")
+            rep.line(f"resuming the search {name!r}: N = {sorted(done)} already done")
 
     def attempt(n: int) -> bool:
         if n in done:
@@ -241,8 +244,9 @@ def max_repetitions(
         row = {"n_cycles": n, "converged": sol.success, "status": sol.status, "iterations": sol.iterations,
                "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s}
         result.tried.append(row)
-        progress(f"N = {n:3d}: {'converged' if sol.success else 'failed   '} ({sol.status}, {sol.iterations} iterations, "
+        rep.line(f"N = {n:3d}: {'converged' if sol.success else 'failed   '} ({sol.status}, {sol.iterations} iterations, "
                  f"{sol.wall_time_s:.1f} s solve, {ocp.build_time_s:.1f} s build)")
+        bar.update(1, N=n, status="converged" if sol.success else "failed", best=max(solutions) if solutions else 0)
         if sol.success:
             solutions[n] = (sol.x, sol.u)
             if n >= result.max_cycles:
@@ -277,6 +281,7 @@ def max_repetitions(
             low = mid
         else:
             high = mid
+    bar.close()
     result.max_cycles = low
     if result.best is not None and result.best[0].n_cycles != low:
         result.best = None

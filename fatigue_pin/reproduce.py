@@ -19,7 +19,7 @@ import numpy as np
 
 from fatigue_pin.paper import COSTS, PAPER_MINUTES_S0, PAPER_REPETITIONS
 
-Progress = Callable[[str], None]
+from fatigue_pin.progress import Progress, as_reporter
 
 
 @dataclass(frozen=True)
@@ -123,7 +123,7 @@ def reproduce(
     preset: str = "paper",
     quick: bool = False,
     jobs: int | None = None,
-    progress: Progress = print,
+    progress: Progress = None,
 ) -> Path:
     """Run the paper's study and write HDF5 files, figures, replays and ``report.md``.
 
@@ -133,13 +133,14 @@ def reproduce(
         quick: a subset that finishes in a few minutes: the forward studies, the sliding
             horizon of every cost with S = 10 capped at 6 cycles, the full horizon capped at 4.
         jobs: worker processes (default: the number of cores).
-        progress: called with progress lines.
+        progress: a Reporter (lines and a bar over the runs) or a line callback; default quiet.
 
     Returns:
         The path of ``report.md``.
     """
     from fatigue_pin.forward import format_table, run_forward_studies
 
+    progress = as_reporter(progress)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -155,6 +156,7 @@ def reproduce(
     progress(f"{len(job_list)} OCP runs on {workers} processes ...")
     rows: list[dict[str, object]] = []
     init = _one_thread_per_worker if workers > 1 else None
+    bar = progress.bar(len(job_list), "OCP runs", "run")
     with ProcessPoolExecutor(max_workers=workers, initializer=init) as pool:
         futures = {pool.submit(_run_job, job): job for job in job_list}
         for fut in as_completed(futures):
@@ -166,6 +168,8 @@ def reproduce(
                        "solve_time_s": float("nan"), "elapsed_s": float("nan"), "file": str(job.out), "error": repr(exc)}
             rows.append(row)
             progress(f"done {row['label']}: {row['repetitions']} repetitions, {row['solve_time_s']:.1f} s solving")
+            bar.update(1, last=row["label"])
+    bar.close()
     files = [out / "forward_studies.h5"] + [job.out for job in job_list]
     _figures_and_replays(files, out, progress)
     report = out / "report.md"

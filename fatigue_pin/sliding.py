@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -37,11 +36,7 @@ from fatigue_pin.results import WINDOW_DTYPE, ResultFileError, RunResult, list_r
 from fatigue_pin.solver import SolverOptions
 from fatigue_pin.transcription import Transcription
 
-Progress = Callable[[str], None]
-
-
-def _quiet(_: str) -> None:
-    pass
+from fatigue_pin.progress import Progress, as_reporter
 
 
 @dataclass(frozen=True)
@@ -113,15 +108,16 @@ class SlidingHorizon:
         guess: initial guess of the first window (``rest`` or ``physical``).
         study: the TOML text of the study, stored with the run.
         labels: attributes stored with the run (e.g. the paper's cost, S and preset).
+        progress: where building (a compile) reports itself; default quiet.
     """
 
     def __init__(self, problem: Problem, sliding: SlidingSettings | None = None, transcription: Transcription | None = None,
                  solver: SolverOptions | None = None, guess: str = "rest", study: str = "",
-                 labels: dict[str, Any] | None = None) -> None:
+                 labels: dict[str, Any] | None = None, progress: Progress = None) -> None:
         self.sliding = sliding or SlidingSettings()
         self.problem = problem
         self.solver = solver or SolverOptions()
-        self.ocp = OcpBuilder(problem, transcription, self.solver, guess)(self.sliding.window, self.sliding.end_tolerance)
+        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, self.sliding.end_tolerance)
         self.model = problem.model
         self.study = study
         self.labels = dict(labels or {})
@@ -217,7 +213,7 @@ class SlidingHorizon:
         out: str | Path | None = None,
         name: str | None = None,
         resume: bool = False,
-        progress: Progress = _quiet,
+        progress: Progress = None,
         stop_after: int | None = None,
     ) -> RunResult:
         """Solve windows until one fails or ``max_cycles`` cycles are kept.
@@ -226,7 +222,8 @@ class SlidingHorizon:
             out: HDF5 file that receives the run after every window (``None``: memory only).
             name: run group name (default ``sliding/run``).
             resume: continue the run stored under ``name`` in ``out``.
-            progress: called with one line per window.
+            progress: a :class:`~fatigue_pin.progress.Reporter` (one line per window and a bar over
+                the cycles kept), or a callable receiving the lines; default quiet.
             stop_after: solve at most this many windows in this call (for tests and batching).
 
         Returns:
@@ -237,10 +234,15 @@ class SlidingHorizon:
         n, A, K = self._n, self.sliding.advance, self.sliding.window
         ocp = self.ocp
         state = self._restore(path, name) if (resume and path is not None) else None
+        rep = as_reporter(progress)
         if resume and state is not None:
-            progress(f"resuming {name!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
+            rep.line(f"resuming {name!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
         build_time = ocp.build_time_s
         solved = 0
+        fatigued_rows = [ocp.layout.nq + ocp.layout.nv + r for r in ocp.actuators.fatigued_rows()]
+        bar = rep.bar(self.sliding.max_cycles, "cycles kept", "cycle")
+        if state is not None:
+            bar.update(state.n_cycles)
         while state is None or not state.done:
             if stop_after is not None and solved >= stop_after:
                 break
@@ -261,10 +263,11 @@ class SlidingHorizon:
             row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
             wall = np.zeros(K)  # a window's solve time goes to the A cycles it keeps
             wall[:A] = sol.wall_time_s / A
-            mf_end = sol.fatigue("mf")[A * n]
-            progress(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
+            mf_end = sol.x[A * n, fatigued_rows]
+            rep.line(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
                      f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
                      f"{'' if limit is None else f' (limit {limit} it)'}  max mf {mf_end.max():.3f}")
+            before = state.n_cycles if state is not None else 0
             if state is None:
                 if not sol.success:
                     state = _State(np.zeros((0, ocp.layout.nx)), np.zeros((0, ocp.layout.nu)), np.zeros((0, sol.cycle_costs.shape[1])),
@@ -287,6 +290,8 @@ class SlidingHorizon:
                 state.done = True
             if path is not None:
                 write_run(path, self._run_result(state, name, build_time))
+            bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
+        bar.close()
         if state is None:
             raise RuntimeError("no window was solved")
         return self._run_result(state, name, build_time)

@@ -35,6 +35,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.errors import ParameterError
+from fatigue_pin.progress import Progress, as_reporter
 
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
@@ -250,8 +251,11 @@ class NlpSolver:
         name: a name for the generated code (the cache key also hashes the code itself).
     """
 
-    def __init__(self, opti: ca.Opti, options: SolverOptions, name: str = "fatigue_ocp") -> None:
+    def __init__(self, opti: ca.Opti, options: SolverOptions, name: str = "fatigue_ocp", progress: Progress = None,
+                 label: str = "the NLP") -> None:
         t0 = time.perf_counter()
+        self._progress = as_reporter(progress)
+        self._label = label
         self.options = options
         self.opti = opti
         x, p, f, g = opti.x, opti.p, opti.f, opti.g
@@ -303,7 +307,8 @@ class NlpSolver:
             digest = hashlib.sha256(key).hexdigest()[:20]
             target = self.options.resolved_cache_dir() / f"{name}_{digest}.so"
             if not target.exists():
-                _compile_shared(source, target, self.options, openmp=b"#pragma omp" in code)
+                with self._progress.task(f"compiling {self._label} (once per machine)", expected_s=len(code) / 100_000):
+                    _compile_shared(source, target, self.options, openmp=b"#pragma omp" in code)
                 self.compile_time_s = time.perf_counter() - t0
         self.compiled_path = target
         return str(target)

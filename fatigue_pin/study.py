@@ -204,7 +204,8 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
         if key not in allowed:
             raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints' or a parameter of {kind!r}: {list(params)}")
         if key in params and (not _is_number(value) or not math.isfinite(float(value)) or value < 0):
-            raise StudyError(f"{where}.{key} = {value!r}: expected a finite number >= 0")
+            unit = FATIGUE_MODELS[kind].param_units[params.index(key)]
+            raise StudyError(f"{where}.{key} = {value!r}: expected " + ("a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite number >= 0"))
         if key == "preset" and not isinstance(value, str):
             raise StudyError(f"{where}.preset = {value!r}: expected a preset name or a JSON file path")
     if "joints" in out:
@@ -553,17 +554,20 @@ def _preset_values(name: str, kind: str) -> dict[str, float]:
 
 
 def run_study(study: Study, out: str | Path | None = None, name: str | None = None, resume: bool = False,
-              progress: Callable[[str], None] | None = None, cache_dir: str | Path | None = None):
+              progress=None, cache_dir: str | Path | None = None):
     """Run a study with its horizon driver and write its run(s) to ``out``.
 
+    ``progress`` is a :class:`~fatigue_pin.progress.Reporter` or a line callback (default quiet).
     Returns the driver's result: a :class:`~fatigue_pin.results.RunResult` (full, sliding) or a
     :class:`~fatigue_pin.full.SearchResult` (max-cycles).
     """
+    from fatigue_pin.progress import as_reporter
+
     from fatigue_pin.full import max_repetitions, solution_to_run, solve_full
     from fatigue_pin.results import write_run
     from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
 
-    say = progress or (lambda _: None)
+    say = as_reporter(progress)
     problem = study.problem()
     tr, sol_opts, h = study.transcription(), study.solver(cache_dir), study.horizon
     name = name or study.run_name()
@@ -578,7 +582,7 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
         sliding = SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=h["max_cycles"],
                                   end_tolerance=h["end_tolerance"], failure_iterations=h["failure_iterations"],
                                   min_iterations=h["min_iterations"], warmup=h["warmup"])
-        runner = SlidingHorizon(problem, sliding, tr, sol_opts, guess=h["guess"], study=text, labels=study.labels)
+        runner = SlidingHorizon(problem, sliding, tr, sol_opts, guess=h["guess"], study=text, labels=study.labels, progress=say)
         return runner.run(out, name=name, resume=resume, progress=say)
     return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say, out=out,
                            name=name, study=text, labels=study.labels, resume=resume)

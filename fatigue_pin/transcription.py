@@ -37,6 +37,7 @@ import numpy as np
 from fatigue_pin.costs import IntervalVariables
 from fatigue_pin.errors import ParameterError
 from fatigue_pin.problem import Problem, StateLayout
+from fatigue_pin.progress import Progress
 from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions
 
 #: Integrators of the shooting intervals.
@@ -257,6 +258,7 @@ class Ocp:
         guess: the default initial guess, ``rest`` or ``physical``.
         functions: interval functions to reuse (built from ``problem`` and ``transcription`` if
             None); pass the ones of another Ocp of the same problem to skip rebuilding them.
+        progress: where a compile reports itself (a Reporter or a line callback; default quiet).
     """
 
     def __init__(
@@ -268,6 +270,7 @@ class Ocp:
         end_tolerance: float | None = None,
         guess: str = "rest",
         functions: IntervalFunctions | None = None,
+        progress: Progress = None,
     ) -> None:
         t0 = time.perf_counter()
         if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
@@ -290,7 +293,8 @@ class Ocp:
         self.cost_terms = problem.cost_names
         self._target_rows = None
         opti = self._formulate()
-        self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}")
+        self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
+                             label=f"the {self.model.name} NLP of {self.n_cycles} cycles")
         self.build_time_s = time.perf_counter() - t0
         self.t = np.linspace(0.0, N * self.task.dt, N + 1)
 
