@@ -183,6 +183,21 @@ def _compile_shared(source: Path, target: Path, options: SolverOptions, openmp: 
         os.replace(tmp_so, target)
 
 
+def generate_nlp_source(solver: ca.Function, name: str, folder: Path) -> Path:
+    """Write the C of an ``nlpsol``'s NLP functions to ``folder/<name>.c`` and return its path.
+
+    The same code as ``solver.generate_dependencies(name + ".c")`` (the oracle, then every NLP
+    function IPOPT calls, in name order), written into ``folder`` without changing the process's
+    working directory.
+    """
+    gen = ca.CodeGenerator(f"{name}.c")
+    gen.add(solver.oracle())
+    for fname in solver.get_function():
+        gen.add(solver.get_function(fname))
+    gen.generate(str(folder) + os.sep)
+    return folder / f"{name}.c"
+
+
 def _is_native(flag: str) -> bool:
     """Whether a compiler flag tunes the code to this CPU (``-march=native``, ``-mtune=native``)."""
     return flag.endswith("=native")
@@ -295,13 +310,7 @@ class NlpSolver:
         return the shared library's path."""
         t0 = time.perf_counter()
         with tempfile.TemporaryDirectory() as tmp:
-            cwd = os.getcwd()
-            os.chdir(tmp)
-            try:
-                solver.generate_dependencies(f"{name}.c")
-            finally:
-                os.chdir(cwd)
-            source = Path(tmp) / f"{name}.c"
+            source = generate_nlp_source(solver, name, Path(tmp))
             code = source.read_bytes()
             key = code + " ".join(self.options.compiler_flags).encode() + _host_key(self.options)
             digest = hashlib.sha256(key).hexdigest()[:20]

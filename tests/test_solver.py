@@ -46,3 +46,28 @@ def test_bad_barrier_settings_are_named():
         SolverOptions(mu_init=-1)
     with pytest.raises(ParameterError, match="perturb_dec_fact = 1.5"):
         SolverOptions(perturb_dec_fact=1.5)
+
+
+def test_generated_nlp_source_needs_no_change_of_directory(tmp_path):
+    """The C written into a folder is what CasADi's generate_dependencies writes into the
+    working directory, and the working directory is left alone."""
+    import os
+
+    import casadi as ca
+
+    from fatigue_pin.solver import generate_nlp_source
+
+    x, p = ca.SX.sym("x", 2), ca.SX.sym("p")
+    nlp = ca.nlpsol("s", "ipopt", {"x": x, "p": p, "f": (x[0] - p) ** 2 + x[1] ** 2, "g": x[0] * x[1]},
+                    {"print_time": False, "ipopt": {"print_level": 0}})
+    cwd = os.getcwd()
+    path = generate_nlp_source(nlp, "nlp_a", tmp_path)
+    assert os.getcwd() == cwd and path == tmp_path / "nlp_a.c"
+    reference = tmp_path / "ref"
+    reference.mkdir()
+    os.chdir(reference)
+    try:
+        nlp.generate_dependencies("nlp_a.c")
+    finally:
+        os.chdir(cwd)
+    assert path.read_bytes() == (reference / "nlp_a.c").read_bytes()
