@@ -229,3 +229,20 @@ def test_task_on_another_robot():
     x, u = ocp.initial_guess()
     assert x.shape == (11, ocp.layout.nx) and u.shape == (10, 12)
     assert x[5, model.joint_names.index("elbow_joint")] == pytest.approx(1.5)
+
+
+def test_the_curl_with_michauds_model_converges(tmp_path):
+    """Michaud's model (four states, effort E) on every half: the OCP converges, the result file
+    carries E, and the four states keep their sum."""
+    from fatigue_pin.study import run_study
+
+    study = small_curl("full", cycles=2).replace({
+        "name": "michaud_curl",
+        "fatigue": {"model": "michaud", "LD": 10.0, "LR": 10.0, "F": 0.456, "R": 0.0094, "effort_threshold": 0.2,
+                    "effort_factor": 0.1, "stabilization_factor": 10.0},
+    })
+    run = run_study(study, tmp_path / "michaud.h5")
+    assert run.converged
+    assert run.fatigue_states == ("ma", "mr", "mf", "E")
+    assert run.fatigue["E"].max() > 1e-4  # effort builds up above the threshold
+    assert run.invariant_error().max() < 1e-6  # ma + mr + mf + E = 1
