@@ -58,6 +58,10 @@ def _curl_study(args: argparse.Namespace, horizon: str):
     from fatigue_pin.paper import curl_study_dict
     from fatigue_pin.study import Study
 
+    for option in ("cycles", "window", "advance", "max_cycles", "n_max"):
+        value = getattr(args, option, None)
+        if value is not None and value < 1:
+            raise UsageError(f"--{option.replace('_', '-')} {value}: expected an integer number of cycles >= 1")
     solver = {"linear_solver": args.linear_solver, "compile": not args.no_compile, "print_level": args.print_level,
               "max_iter": args.max_iter}
     cycles = {"full": getattr(args, "cycles", None), "sliding": getattr(args, "window", None)}.get(horizon)
@@ -134,6 +138,9 @@ def _cmd_rerun(args: argparse.Namespace) -> int:
     name = args.run
     if name is None:
         runs = [r for r in list_runs(args.file) if read_run(args.file, r).study]
+        if not runs:
+            raise ResultFileError(f"{str(args.file)!r} holds no run with a stored study (its runs were built in Python); "
+                                  "expected a file written from a study")
         if len(runs) != 1:
             raise ResultFileError(f"{str(args.file)!r} holds {len(runs)} runs with a study {runs}; name one")
         name = runs[0]

@@ -209,6 +209,32 @@ def resolve_model(name: str | Path | None = None, gravity: object = None) -> Rob
     return load_model(path, g)
 
 
+def _parse_urdf(path: Path) -> tuple[pin.Model | None, Exception | None, str]:
+    """``pin.buildModelFromUrdf`` with what its URDF parser prints on the standard error (file
+    descriptor 2) caught: (model or None, the exception or None, the parser's text). On success
+    the text is passed on to ``sys.stderr``."""
+    import os
+    import sys
+    import tempfile
+
+    with tempfile.TemporaryFile() as caught:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(caught.fileno(), 2)
+        try:
+            model, error = pin.buildModelFromUrdf(str(path)), None
+        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError
+            model, error = None, exc
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        caught.seek(0)
+        said = caught.read().decode(errors="replace")
+    if model is not None and said:
+        sys.stderr.write(said)
+    return model, error, said
+
+
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
 
@@ -227,10 +253,12 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
     path = bundled_urdf("arm26") if urdf is None else Path(urdf).expanduser()
     if not path.is_file():
         raise ModelError(f"URDF file not found: {str(path)!r} (expected the path of an existing .urdf file)")
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
-        raise ModelError(f"URDF file {str(path)!r} does not parse: {exc}") from exc
+    model, exc, said = _parse_urdf(path)
+    if model is None:  # the parser's own lines (urdfdom prints them) name what is wrong
+        reasons = [line.removeprefix("Error:").strip() for line in said.splitlines()
+                   if line.strip() and not line.strip().startswith("at line ")]
+        reason = "; ".join(reasons[:3]) if reasons else " ".join(str(exc).split())
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {reason}") from exc
     _validate_joints(model, path)
     if model.nv == 0:
         raise ModelError(f"{path}: the model has no movable joint")

@@ -249,6 +249,8 @@ _FORMAT_PREFIX = "fatigue_pin.results/"
 #: File-creation settings: free space is tracked across sessions, so replacing a run reuses the
 #: space of the old one instead of growing the file.
 _CREATE = {"fs_strategy": "fsm", "fs_persist": True, "fs_threshold": 1}
+#: A file is compacted once it is larger than twice its size after its last compaction plus this.
+_COMPACT_SLACK = 1 << 20
 
 
 def _layout_of(h5: h5py.File, path: Path) -> int | None:
@@ -320,18 +322,27 @@ def _compact(src: Path, dst: Path) -> None:
                 new[key].attrs["fatigue_states"] = [s for s in LEGACY_FATIGUE_STATES if s in new[key]]
 
 
-def _prepare(path: Path, tmp: Path) -> None:
-    """Put at ``tmp`` a copy of ``path`` (an empty new file if there is none) to be edited."""
+def _prepare(path: Path, tmp: Path) -> int | None:
+    """Put at ``tmp`` a copy of ``path`` (an empty new file if there is none) to be edited.
+
+    The copy is a byte copy, unless the file is of an older layout, lacks persistent free-space
+    tracking, or has more than doubled (plus 1 MiB) since it was last compacted (HDF5 does not
+    reuse all the space of deleted groups): then it is rewritten object by object, once in a
+    while, so a file's size stays within about twice its contents. Returns the size of a new or
+    compacted file (None for a byte copy).
+    """
     if not path.exists():
         h5py.File(tmp, "w", **_CREATE).close()
-        return
+        return 0
     with _open(path) as old:  # refuses a damaged file, a foreign one or a newer layout
         layout = _layout_of(old, path)
         persistent = bool(old.id.get_create_plist().get_file_space_strategy()[1])
-    if layout == LAYOUT and persistent:
+        compacted = int(old.attrs.get("compacted_bytes", 0))
+    if layout == LAYOUT and persistent and path.stat().st_size <= 2 * compacted + _COMPACT_SLACK:
         _clone(path, tmp)
-    else:
-        _compact(path, tmp)
+        return None
+    _compact(path, tmp)
+    return tmp.stat().st_size
 
 
 def _fsync(path: Path, directory: bool = False) -> None:
@@ -363,8 +374,10 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         with _locked(path):
             try:
-                _prepare(path, tmp)
+                compacted = _prepare(path, tmp)
                 with h5py.File(tmp, "a") as h5:
+                    if compacted is not None:
+                        h5.attrs["compacted_bytes"] = compacted
                     for key in skip:  # run names may be paths such as "sliding/torque_S10"
                         if key in h5:
                             del h5[key]
