@@ -1,0 +1,300 @@
+"""Kill long runs with SIGKILL at random moments, resume them, and check that nothing is lost.
+
+    PYTHONPATH=. python benchmarks/kill_resume.py [--kills 20] [--seed 0]
+
+For the small curl (10 intervals per cycle, 2 RK4 substeps, uncompiled), a sliding-horizon run
+(``--windows``) and a maximum-repetitions search (``--n-max``) are each started with
+``resume=True`` in a child process and killed with SIGKILL, ``--kills`` times in all, then resumed
+until they finish. Half the kills land at a random point of a write of the result file (the child
+announces every step of a write: the byte copy, the HDF5 edit, the fsync, the rename, and pauses
+briefly there), the others after a random delay (mostly during a solve). After every kill:
+
+* the result file must open and its run / search table must read (else: an unreadable file);
+* every window / N the child reported as written must be in it, and what it holds must be the
+  beginning of the uninterrupted run's table (else: lost items);
+
+and every resumed run must end equal to the uninterrupted one: the same windows (first cycles,
+statuses) or the same N tried in the same order, and the same trajectories to 1e-9.
+
+Prints the figures: kills (and how many during a write), resumes, unreadable files, lost items,
+runs equal to the uninterrupted one. ``tests/test_kill_resume.py`` runs a short version.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CHILD = textwrap.dedent(
+    """
+    import os, sys, time
+    import fatigue_pin.full as F
+    import fatigue_pin.results as R
+    import fatigue_pin.sliding as S
+    from fatigue_pin.paper import curl_study
+    from fatigue_pin.study import run_study
+
+    def say(line):
+        sys.stdout.write(line + "\\n")
+        sys.stdout.flush()
+
+    PAUSE = float(os.environ.get("KILL_PAUSE", "0.02"))
+
+    def announce(tag):  # a step of a write: the parent may kill here
+        say("IO " + tag)
+        time.sleep(PAUSE)
+
+    real_clone, real_compact, real_fsync, real_replace, real_group = R._clone, R._compact, R._fsync, os.replace, R._write_run
+
+    def clone(src, dst):
+        announce("copy")
+        real_clone(src, dst)
+
+    def compact(src, dst):
+        announce("compact")
+        real_compact(src, dst)
+
+    def group(g, run):
+        announce("h5")
+        real_group(g, run)
+        announce("h5-written")
+
+    def fsync(path, directory=False):
+        if not directory:
+            announce("fsync")
+        real_fsync(path, directory)
+
+    def replace(a, b):
+        announce("rename")
+        real_replace(a, b)
+
+    R._clone, R._compact, R._write_run, R._fsync, os.replace = clone, compact, group, fsync, replace
+
+    def wrote(module, name, tag):
+        real = getattr(module, name)
+
+        def call(*args, **kwargs):
+            out = real(*args, **kwargs)
+            say("WROTE " + tag)
+            return out
+
+        setattr(module, name, call)
+
+    wrote(S, "write_run", "window")
+    wrote(F, "write_search", "search")
+    kind, out, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    study = curl_study(kind, max_cycles=n, intervals_per_cycle=10, substeps=2, solver={"compile": False})
+    say("START")
+    run_study(study, out, name="run", resume=True, progress=lambda line: say("P " + line))
+    say("FINISHED")
+    """
+)
+
+
+@dataclass
+class Figures:
+    kind: str
+    kills: int = 0
+    kills_in_write: int = 0
+    where: dict[str, int] = field(default_factory=dict)
+    resumes: int = 0
+    unreadable: int = 0
+    lost: int = 0
+    runs: int = 0
+    equal: int = 0
+    problems: list[str] = field(default_factory=list)
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "OMP_NUM_THREADS": "1"}
+
+
+def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tuple[int, bool, str | None, float]:
+    """Run the child once. ``kill``: None (to the end), ("io", k): SIGKILL at its k-th write step,
+    ("time", s): SIGKILL s seconds after it has started working. Returns (items it reported
+    written, killed, the last write step it announced before dying or None, seconds of work)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(out), str(n)], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, text=True, env=_env())
+    timer = None
+    written, steps, last, finished = 0, 0, None, False
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        if line.startswith("START"):
+            t0 = time.perf_counter()
+            if kill is not None and kill[0] == "time":
+                timer = threading.Timer(kill[1], lambda: proc.poll() is None and os.kill(proc.pid, signal.SIGKILL))
+                timer.start()
+        elif line.startswith("WROTE window") or line.startswith("WROTE search"):
+            written += 1
+            last = None
+        elif line.startswith("IO "):
+            steps += 1
+            last = line.split()[1]
+            if kill is not None and kill[0] == "io" and steps == int(kill[1]):
+                os.kill(proc.pid, signal.SIGKILL)
+                break
+        elif line.startswith("FINISHED"):
+            finished = True
+    proc.wait()
+    if timer is not None:
+        timer.cancel()
+    killed = proc.returncode == -signal.SIGKILL
+    if not killed and (proc.returncode != 0 or not finished):
+        raise RuntimeError(f"the {kind} child failed with exit code {proc.returncode}")
+    return written, killed, last if killed else None, time.perf_counter() - t0
+
+
+def stored(kind: str, out: Path) -> list[tuple]:
+    """The items a file holds: windows (index, first cycle, status, converged) or search rows
+    (N, converged, status); every converged N's run is read too. Raises if anything is unreadable."""
+    from fatigue_pin.full import step_run_name
+    from fatigue_pin.results import list_runs, read_run, read_search
+
+    if not out.exists():
+        return []
+    runs = list_runs(out)
+    if kind == "sliding":
+        if "run" not in runs:
+            return []
+        w = read_run(out, "run").windows
+        return [(int(r["index"]), int(r["first_cycle"]), bytes(r["status"]), bool(r["converged"])) for r in w]
+    table = read_search(out).get("run")
+    if table is None:
+        return []
+    items = [(int(r["n_cycles"]), bool(r["converged"]), bytes(r["status"])) for r in table]
+    for n, converged, _ in items:
+        if converged:
+            read_run(out, step_run_name("run", n))
+    return items
+
+
+def same_result(kind: str, a: Path, b: Path, atol: float = 1e-9) -> str | None:
+    """None if the runs stored in ``a`` and ``b`` are equal (tables, trajectories to ``atol``),
+    else what differs."""
+    from fatigue_pin.full import step_run_name
+    from fatigue_pin.results import list_runs, read_run
+
+    if stored(kind, a) != stored(kind, b):
+        return f"tables differ: {stored(kind, a)} != {stored(kind, b)}"
+    names = ["run"] if kind == "sliding" else [step_run_name("run", n) for n, ok, _ in stored(kind, a) if ok] + ["run"]
+    if sorted(list_runs(a)) != sorted(list_runs(b)):
+        return f"runs differ: {list_runs(a)} != {list_runs(b)}"
+    for name in names:
+        ra, rb = read_run(a, name), read_run(b, name)
+        for key in ("q", "qdot", "tau_plus", "tau_minus", "cycle_costs"):
+            if getattr(ra, key).shape != getattr(rb, key).shape or not np.allclose(getattr(ra, key), getattr(rb, key), atol=atol, rtol=0):
+                return f"{name}: {key} differs"
+        for s in ra.fatigue:
+            if not np.allclose(ra.fatigue[s], rb.fatigue[s], atol=atol, rtol=0, equal_nan=True):
+                return f"{name}: {s} differs"
+    return None
+
+
+def reference(kind: str, n: int, folder: Path) -> tuple[Path, float]:
+    """The uninterrupted run, and its duration (s)."""
+    out = folder / f"{kind}_reference.h5"
+    if out.exists():
+        out.unlink()
+    _, _, _, elapsed = segment(kind, out, n, None)
+    return out, elapsed
+
+
+def campaign(kind: str, n: int, kills: int, folder: Path, seed: int = 0, say=print,
+             plan: list[tuple[str, float]] | None = None) -> Figures:
+    """``kills`` SIGKILLs of ``kind`` runs (``sliding`` or ``max-cycles``), resumed until they end;
+    as many runs from scratch as the kills need. Kills are drawn at random, half at a step of a
+    write, half after a random time; ``plan`` gives them instead, in order."""
+    rng = np.random.default_rng(seed)
+    plan = list(plan or [])
+    ref, duration = reference(kind, n, folder)
+    ref_items = stored(kind, ref)
+    fig = Figures(kind)
+    while fig.kills < kills:
+        fig.runs += 1
+        out = folder / f"{kind}_{fig.runs}.h5"
+        if out.exists():
+            out.unlink()
+        have: list[tuple] = []
+        while True:
+            kill: tuple[str, float] | None = None
+            if plan and fig.kills < kills:
+                kill = plan[fig.kills]
+            elif fig.kills < kills:
+                kill = ("io", int(rng.integers(1, 12))) if rng.random() < 0.5 else ("time", float(rng.uniform(0.0, duration)))
+            if have or fig.kills:
+                fig.resumes += out.exists()
+            written, killed, last, _ = segment(kind, out, n, kill)
+            try:
+                now = stored(kind, out)
+            except Exception as exc:  # noqa: BLE001 - any failure to read counts
+                fig.unreadable += 1
+                fig.problems.append(f"run {fig.runs}: unreadable after a kill ({last}): {exc}")
+                break
+            if killed:
+                fig.kills += 1
+                fig.kills_in_write += last is not None
+                key = last or "between writes"
+                fig.where[key] = fig.where.get(key, 0) + 1
+            expected = len(have) + written
+            if len(now) < expected or now != ref_items[: len(now)]:
+                fig.lost += max(expected - len(now), 0) or 1
+                fig.problems.append(f"run {fig.runs}: held {len(have)} items + {written} written, now {len(now)}: {now}")
+            have = now
+            if not killed:
+                break
+        if fig.unreadable:
+            break
+        diff = same_result(kind, out, ref)
+        if diff is None:
+            fig.equal += 1
+        else:
+            fig.problems.append(f"run {fig.runs}: differs from the uninterrupted run: {diff}")
+        say(f"{kind}: run {fig.runs} done; {fig.kills} kills so far")
+    return fig
+
+
+def report(figs: list[Figures]) -> str:
+    lines = [f"{'':<12}{'kills':>6}{'in a write':>11}{'resumes':>9}{'unreadable':>11}{'lost':>6}{'runs':>6}{'equal':>7}"]
+    for f in figs:
+        lines.append(f"{f.kind:<12}{f.kills:>6}{f.kills_in_write:>11}{f.resumes:>9}{f.unreadable:>11}{f.lost:>6}{f.runs:>6}{f.equal:>7}")
+    for f in figs:
+        lines.append(f"{f.kind} kills by step: " + ", ".join(f"{k} {v}" for k, v in sorted(f.where.items())))
+        lines += [f"  {p}" for p in f.problems]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    import tempfile
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kills", type=int, default=20, help="kills of each kind of run")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--windows", type=int, default=8, help="sliding: stop after this many cycles")
+    parser.add_argument("--n-max", type=int, default=6, help="search: largest N")
+    parser.add_argument("--keep", type=Path, default=None, help="keep the files in this folder")
+    args = parser.parse_args()
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        figs = [campaign("sliding", args.windows, args.kills, folder, args.seed),
+                campaign("max-cycles", args.n_max, args.kills, folder, args.seed + 1)]
+    print(report(figs))
+    print(f"{time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
