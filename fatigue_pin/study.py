@@ -568,6 +568,10 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
 
     say = as_reporter(progress)
+    if out is not None:  # before any work: a bad output path fails now, not after the solve
+        from fatigue_pin.results import check_output
+
+        check_output(out)
     problem = study.problem()
     tr, sol_opts, h = study.transcription(), study.solver(cache_dir), study.horizon
     name = name or study.run_name()
