@@ -52,7 +52,7 @@ Progress = Callable[[str], None]
 #: Keys a sweep file may hold at its top level.
 SWEEP_KEYS = ("base", "grid", "cases", "description")
 #: Columns of the summary after the swept keys (``docs/sweeps.md``).
-SUMMARY_COLUMNS = ("job", "status", "repetitions", "objective", "iterations", "wall_time_s", "worker", "file", "run",
+SUMMARY_COLUMNS = ("case", "job", "status", "repetitions", "objective", "iterations", "wall_time_s", "worker", "file", "run",
                    "reused", "error")
 STATUSES = ("converged", "not converged", "error")
 SUMMARY_FORMAT = "fatigue_pin.sweep/1"
@@ -103,6 +103,7 @@ class Job:
         index: position in the sweep (0-based; the order of :meth:`Sweep.jobs`).
         study: the resolved, validated study.
         values: the swept keys and their values for this job (case keys, then grid keys).
+        case: index of the job's ``[[cases]]`` table (None in a sweep without cases).
         text: the study's TOML text (what the result file stores).
         id: :func:`study_id` of ``text``; the result file is ``<id>.h5``.
     """
@@ -112,6 +113,7 @@ class Job:
     values: dict[str, Any]
     text: str
     id: str
+    case: int | None = None
 
     @property
     def file(self) -> str:
@@ -137,7 +139,7 @@ class Sweep:
         try:
             data = tomllib.loads(path.read_text())
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise SweepError(f"{str(path)!r} is not valid TOML: {exc}") from None
+            raise SweepError(f"{path}: not valid TOML: {exc}") from None
         return cls.from_dict(data, root=path.parent, source=str(path))
 
     @classmethod
@@ -145,7 +147,7 @@ class Sweep:
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            raise SweepError(f"{source} is not valid TOML: {exc}") from None
+            raise SweepError(f"{source}: not valid TOML: {exc}") from None
         return cls.from_dict(data, root=root, source=source)
 
     @classmethod
@@ -229,7 +231,7 @@ class Sweep:
         points = [dict(zip(self.grid, combo)) for combo in itertools.product(*self.grid.values())]
         jobs: list[Job] = []
         seen: dict[str, Job] = {}
-        for case in self.cases or [{}]:
+        for c, case in enumerate(self.cases or [{}]):
             for point in points:
                 values = {**copy.deepcopy(case), **copy.deepcopy(point)}
                 try:
@@ -237,7 +239,7 @@ class Sweep:
                 except StudyError as exc:
                     raise SweepError(f"{self.source}: job {_show(values)}: {exc}") from None
                 text = study.to_toml()
-                job = Job(len(jobs), study, values, text, study_id(text))
+                job = Job(len(jobs), study, values, text, study_id(text), c if self.cases else None)
                 if job.id in seen:
                     raise SweepError(f"{self.source}: jobs {_show(seen[job.id].values)} and {_show(values)} are the same study")
                 seen[job.id] = job
@@ -294,14 +296,16 @@ def read_job_file(path: str | Path, text: str) -> dict[str, Any]:
         raise ResultFileError(f"{str(path)!r} does not exist")
     try:
         with h5py.File(path, "r") as h5:
-            if "sweep" not in h5:
-                raise ResultFileError(f"{str(path)!r} was not completed by a sweep")
-            stored = h5["sweep"].attrs.get("study", "")
-            stored = stored.decode() if isinstance(stored, bytes) else str(stored)
-            row = json.loads(h5["sweep"].attrs["row"])
+            marked = "sweep" in h5
+            if marked:
+                stored = h5["sweep"].attrs.get("study", "")
+                stored = stored.decode() if isinstance(stored, bytes) else str(stored)
+                row = json.loads(h5["sweep"].attrs["row"])
             searches = "search" in h5
     except (OSError, KeyError, ValueError) as exc:
         raise ResultFileError(f"{str(path)!r} is not a readable sweep result: {exc}") from None
+    if not marked:
+        raise ResultFileError(f"{str(path)!r} was not completed by a sweep")
     if stored != text:
         raise ResultFileError(f"{str(path)!r} holds another study")
     name = row.get("run", "")
@@ -344,6 +348,8 @@ def run_job(text: str, job_id: str, out_dir: str, cache_dir: str | None = None) 
     resumed from it) and renamed to ``<id>.h5`` once complete. A job that raises gives a row with
     status ``error`` and no file; a file system error (``OSError``) is raised so Dask retries.
     """
+    import h5py
+
     from fatigue_pin.results import ResultFileError
     from fatigue_pin.study import run_study
 
@@ -355,21 +361,23 @@ def run_job(text: str, job_id: str, out_dir: str, cache_dir: str | None = None) 
     except ResultFileError:
         pass
     part = partial_path(out, job_id)
-    Path(str(part) + ".tmp").unlink(missing_ok=True)
     t0 = time.perf_counter()
     row: dict[str, Any] = {"job": job_id, "file": final.name, "worker": host, "reused": False, "error": ""}
     try:
         study = Study.from_toml(text, f"job {job_id}")
+        resume = part.exists() and h5py.is_hdf5(part)
+        if not resume:
+            _remove_leftovers(out, job_id)
         try:
-            result = run_study(study, part, resume=part.exists(), cache_dir=cache_dir)
-        except ResultFileError:  # a partial file that cannot be resumed: start again
-            part.unlink(missing_ok=True)
+            result = run_study(study, part, resume=resume, cache_dir=cache_dir)
+        except (ResultFileError, OSError):
+            if not resume:
+                raise
+            _remove_leftovers(out, job_id)  # a partial file that cannot be resumed: start again
             result = run_study(study, part, cache_dir=cache_dir)
         row.update(_summarise(study, result))
         row["wall_time_s"] = time.perf_counter() - t0
         if not part.exists():
-            import h5py
-
             h5py.File(part, "w").close()
         _finish(part, final, text, row)
     except OSError:
@@ -404,7 +412,7 @@ def summary_rows(jobs: Iterable[Job], rows: dict[str, dict[str, Any]]) -> tuple[
         keys += [k for k in job.values if k not in keys]
     table = []
     for job in jobs:
-        row = rows.get(job.id, {"job": job.id, "status": "pending", "file": job.file})
+        row = {**rows.get(job.id, {"job": job.id, "status": "pending", "file": job.file}), "case": job.case}
         table.append({**{k: job.values.get(k) for k in keys}, **{c: row.get(c) for c in SUMMARY_COLUMNS}})
     return keys + list(SUMMARY_COLUMNS), table
 
@@ -478,9 +486,9 @@ def read_summary(out: str | Path) -> tuple[list[str], list[str], list[dict[str, 
         reader = csv.reader(fh)
         columns = next(reader, [])
         rows = [dict(zip(columns, (_parse(v) for v in line))) for line in reader]
-    if "job" not in columns:
-        raise SweepError(f"{str(path)!r} is not a sweep summary: it has no 'job' column")
-    return columns[: columns.index("job")], columns, rows
+    if SUMMARY_COLUMNS[0] not in columns:
+        raise SweepError(f"{str(path)!r} is not a sweep summary: it has no {SUMMARY_COLUMNS[0]!r} column")
+    return columns[: columns.index(SUMMARY_COLUMNS[0])], columns, rows
 
 
 # -- running a sweep -------------------------------------------------------------------------------
@@ -493,7 +501,7 @@ def check_folder(out: str | Path) -> Path:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise SweepError(f"output {str(out)!r} is a file; expected a folder (one result file per job, summary.csv)")
-    check_output(out / "summary.h5")
+    check_output(out / ".fatigue_pin_sweep_check.h5")  # the folder: creatable, writable (nothing is written there)
     return out.resolve()
 
 

@@ -1,7 +1,7 @@
 """Figures of a sweep's output folder: repetitions against each swept key (``fatigue-pin plot DIR``).
 
-One figure per swept key (a key with more than one value in the summary): repetitions of every
-job against that key's values, one line per combination of the other swept keys. Jobs that
+One figure per swept key (:func:`independent_keys`): repetitions of every job against that key's
+values, one line per combination of the other swept keys. Jobs that
 ended in an error are left out; jobs that did not converge are drawn with open markers.
 """
 
@@ -14,6 +14,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from fatigue_pin.sweep import read_summary  # noqa: E402
 
@@ -38,12 +39,35 @@ def _save(fig: Any, out_dir: Path, stem: str) -> list[Path]:
     return paths
 
 
+def _determined(key: str, by: list[str], rows: list[dict[str, Any]]) -> bool:
+    """Whether the value of ``key`` is the same in every row with the same values of ``by``."""
+    seen: dict[tuple, Any] = {}
+    for r in rows:
+        combo = tuple(_key(r.get(k)) for k in by)
+        if seen.setdefault(combo, _key(r.get(key))) != _key(r.get(key)):
+            return False
+    return True
+
+
+def independent_keys(keys: list[str], rows: list[dict[str, Any]]) -> list[str]:
+    """The swept keys to draw against: grid keys (those that vary within a case) first, then the
+    case keys, leaving out constants and keys that follow from the keys kept before them (e.g. a
+    label set together with a cost weight in each case)."""
+    varying = [k for k in keys if len({_key(r.get(k)) for r in rows}) > 1]
+    in_case = [k for k in varying if not _determined(k, ["case"], rows)]
+    kept: list[str] = []
+    for key in in_case + [k for k in varying if k not in in_case]:
+        if not _determined(key, kept, rows):
+            kept.append(key)
+    return kept
+
+
 def plot_sweep(folder: str | Path, out_dir: str | Path) -> list[Path]:
     """Write ``sweep_<key>.png`` / ``.pdf`` for every swept key of the sweep in ``folder``."""
     folder, out_dir = Path(folder), Path(out_dir)
     keys, _, rows = read_summary(folder)
     rows = [r for r in rows if r.get("status") in ("converged", "not converged")]
-    swept = [k for k in keys if len({_key(r.get(k)) for r in rows}) > 1]
+    swept = independent_keys(keys, rows)
     paths: list[Path] = []
     if not swept:  # one job, or every job the same on the swept keys: one bar per job
         fig, ax = plt.subplots(figsize=(6, 4), layout="constrained")
@@ -78,6 +102,7 @@ def plot_sweep(folder: str | Path, out_dir: str | Path) -> list[Path]:
             ax.set_xticks(range(len(order)), [_label(v) for v in order])
         ax.set_xlabel(key)
         ax.set_ylabel("repetitions")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(f"repetitions against {key} (open markers: not converged)", fontsize=9)
         if len(groups) > 1:
             ax.legend(fontsize=7)
