@@ -73,6 +73,58 @@ def package_dirs() -> list[str]:
 
 
 @dataclass(frozen=True)
+class Payload:
+    """A rigid load held at a frame of the model (a tool, a carried box).
+
+    Attributes:
+        frame: the frame it is fixed to (a link or tool frame of the URDF).
+        mass: kg, >= 0.
+        com: centre of mass in the frame's axes, from its origin (m), 3 numbers.
+        inertia: rotational inertia about the centre of mass, in the frame's axes (kg m^2), as
+            (ixx, ixy, ixz, iyy, iyz, izz); None: a point mass.
+    """
+
+    frame: str
+    mass: float
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        m = self.mass
+        if isinstance(m, bool) or not isinstance(m, (int, float, np.floating, np.integer)) or not math.isfinite(m) or m < 0:
+            raise ModelError(f"payload mass = {m!r}: expected a finite mass >= 0 (kg)")
+        object.__setattr__(self, "mass", float(m))
+        c = np.asarray(self.com, dtype=float).reshape(-1)
+        if c.size != 3 or not np.all(np.isfinite(c)):
+            raise ModelError(f"payload com = {list(np.ravel(self.com))!r}: expected 3 finite numbers (m, in the frame's axes)")
+        object.__setattr__(self, "com", tuple(float(x) for x in c))
+        if self.inertia is not None:
+            i = np.asarray(self.inertia, dtype=float).reshape(-1)
+            if i.size != 6 or not np.all(np.isfinite(i)) or np.linalg.eigvalsh(self.inertia_matrix(i)).min() < -1e-12:
+                raise ModelError(f"payload inertia = {list(np.ravel(self.inertia))!r}: expected (ixx, ixy, ixz, iyy, iyz, izz), "
+                                 "kg m^2, a positive semi-definite matrix")
+            object.__setattr__(self, "inertia", tuple(float(x) for x in i))
+
+    @staticmethod
+    def inertia_matrix(i: np.ndarray | tuple | None) -> np.ndarray:
+        if i is None:
+            return np.zeros((3, 3))
+        ixx, ixy, ixz, iyy, iyz, izz = i
+        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+    def apply(self, model: pin.Model, owner: str = "model") -> None:
+        """Add the load to the body of the frame's parent joint of ``model`` (in place)."""
+        if not model.existFrame(self.frame):
+            names = [f.name for f in model.frames if f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME)]
+            raise ModelError(f"payload frame {self.frame!r} is not in {owner} {model.name!r}; its link and tool frames are {names}")
+        f = model.frames[model.getFrameId(self.frame)]
+        if f.parentJoint == 0:
+            raise ModelError(f"payload frame {self.frame!r} is fixed to the base of {owner} {model.name!r}; it would move no joint")
+        Y = pin.Inertia(self.mass, np.array(self.com), self.inertia_matrix(self.inertia))
+        model.appendBodyToJoint(f.parentJoint, Y, f.placement)
+
+
+@dataclass(frozen=True)
 class RobotModel:
     """A fixed-base rigid-body model with its bounds and CasADi dynamics.
 
@@ -86,6 +138,7 @@ class RobotModel:
         tau_lower, tau_upper: torque/force bounds, shape (nv,), N m or N (tau_lower < 0 < tau_upper).
         aba: ``casadi.Function`` (q[nq], v[nv], tau[nv]) -> ddq[nv], Pinocchio's ABA on SX.
         rnea: ``casadi.Function`` (q[nq], v[nv], a[nv]) -> tau[nv], Pinocchio's RNEA on SX.
+        payload: the :class:`Payload` added to ``pin_model`` (and so to ``aba``, ``rnea``), or None.
     """
 
     name: str
@@ -100,6 +153,32 @@ class RobotModel:
     tau_upper: np.ndarray = field(repr=False)
     aba: ca.Function = field(repr=False)
     rnea: ca.Function = field(repr=False)
+    payload: Payload | None = None
+    _frames: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    # -- frame kinematics on CasADi symbols (fatigue_pin.kinematics), cached per frame ----------
+
+    def frame(self, frame: str):
+        """:class:`~fatigue_pin.kinematics.FrameFunctions` of ``frame`` (built once, then cached)."""
+        from fatigue_pin.kinematics import frame_functions, frame_id
+
+        fid = frame_id(self.pin_model, frame)
+        if fid not in self._frames:
+            self._frames[fid] = frame_functions(self.pin_model, fid)
+        return self._frames[fid]
+
+    def frame_position(self, frame: str) -> ca.Function:
+        """``casadi.Function`` q (nq) -> p (3): world position of ``frame``'s origin (m)."""
+        return self.frame(frame).position
+
+    def frame_rotation(self, frame: str) -> ca.Function:
+        """``casadi.Function`` q (nq) -> R (3 x 3): world orientation of ``frame``."""
+        return self.frame(frame).rotation
+
+    def frame_velocity(self, frame: str) -> ca.Function:
+        """``casadi.Function`` (q (nq), v (nv)) -> pdot (3): linear velocity of ``frame``'s origin,
+        world axes (m/s)."""
+        return self.frame(frame).velocity
 
     @property
     def nq(self) -> int:
@@ -185,28 +264,28 @@ def _validate_joints(model: pin.Model, path: Path) -> None:
             )
 
 
-def resolve_model(name: str | Path | None = None, gravity: object = None) -> RobotModel:
+def resolve_model(name: str | Path | None = None, gravity: object = None, payload: Payload | None = None) -> RobotModel:
     """Load a model by name or path: a bundled model (``arm26``), an example-robot-data name
-    (``ur5``, ``panda``), or the path of a URDF file.
+    (``ur5``, ``panda``), or the path of a URDF file; ``payload`` adds a load at a frame.
 
     Raises:
         ModelError: a name that is none of these, or a file that cannot be loaded.
     """
     g = None if gravity is None else np.asarray(gravity, dtype=float)
     if name is None:
-        return load_model(None, g)
+        return load_model(None, g, payload)
     text = str(name)
     here = Path(__file__).resolve().parent
     if text.isidentifier() and any((folder / f"{text}.urdf").is_file() for folder in (here / "urdf", here.parent / "urdf")):
-        return load_model(bundled_urdf(text), g)
+        return load_model(bundled_urdf(text), g, payload)
     if text in EXAMPLE_ROBOTS:
-        return load_model(example_robot_urdf(text), g)
+        return load_model(example_robot_urdf(text), g, payload)
     path = Path(text).expanduser()
     if not path.suffix and not path.exists():
         raise ModelError(
             f"model {text!r} is not a bundled model (arm26), an example-robot-data name {sorted(EXAMPLE_ROBOTS)} or an existing URDF path"
         )
-    return load_model(path, g)
+    return load_model(path, g, payload)
 
 
 def _parse_urdf(path: Path) -> tuple[pin.Model | None, Exception | None, str]:
@@ -235,12 +314,14 @@ def _parse_urdf(path: Path) -> tuple[pin.Model | None, Exception | None, str]:
     return model, error, said
 
 
-def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None) -> RobotModel:
+def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
 
     Args:
         urdf: URDF file; default the bundled arm26 (``urdf/arm26.urdf``).
         gravity: optional gravity vector (3,) in the world frame, m/s^2 (default (0, 0, -9.81)).
+        payload: an optional :class:`Payload` fixed to one of the model's frames; it is part of
+            ``pin_model`` and of the CasADi dynamics (the URDF file is left as it is).
 
     Returns:
         A :class:`RobotModel`. Bounds come from the URDF ``<limit>`` tags; a missing or infinite
@@ -267,6 +348,8 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         if g.size != 3:
             raise DimensionError(f"gravity has {g.size} entries; expected 3 (m/s^2, world frame)")
         model.gravity.linear = g
+    if payload is not None:
+        payload.apply(model, "model")
 
     names = tuple(model.names[i] for i in range(1, model.njoints))
     q_lower, q_upper = np.array(model.lowerPositionLimit, dtype=float), np.array(model.upperPositionLimit, dtype=float)
@@ -295,4 +378,5 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         tau_upper=effort.copy(),
         aba=aba,
         rnea=rnea,
+        payload=payload,
     )

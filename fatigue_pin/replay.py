@@ -107,6 +107,10 @@ class _Kinematics:
     joint_ids: list[int]  # Pinocchio joint id of every run joint
     halves: list[tuple[int, int]]  # (plus, minus) mf columns of every run joint
     segment_of: dict[str, int] = field(default_factory=dict)  # visual name -> index of its joint in joint_ids
+    # coloured visuals whose mesh file (Collada) is sent as triangles: a Collada scene is a group
+    # without one material, so its colour could not be keyframed; the triangles are the mesh as
+    # Pinocchio loaded it (coal, scale applied), with one Phong material
+    triangle_meshes: set[str] = field(default_factory=set)
 
     def visual_path(self, name: str) -> str:
         return f"{ROOT}/visuals/{name}"
@@ -135,6 +139,8 @@ def _kinematics(run: RunResult) -> _Kinematics:
         previous = model.frames[frame.parentFrame]
         if previous.type == pin.FrameType.JOINT and g.parentJoint in joint_ids:
             kin.segment_of[g.name] = joint_ids.index(g.parentJoint)
+            if g.meshPath.lower().endswith(".dae") and hasattr(g.geometry, "num_tris"):
+                kin.triangle_meshes.add(g.name)
     return kin
 
 
@@ -149,7 +155,8 @@ def _poses(kin: _Kinematics, q: np.ndarray) -> dict[str, np.ndarray]:
     out = {}
     for k, g in enumerate(kin.visual.geometryObjects):
         T = gdata.oMg[k].homogeneous.copy()
-        T[:3, :3] = T[:3, :3] @ np.diag(g.meshScale)
+        if g.name not in kin.triangle_meshes:  # the triangles are already scaled
+            T[:3, :3] = T[:3, :3] @ np.diag(g.meshScale)
         out[kin.visual_path(g.name)] = T
     for jid in kin.joint_ids:
         at_joint = data.oMi[model.parents[jid]] * model.jointPlacements[jid]
@@ -288,6 +295,26 @@ def _frame_nodes(run: RunResult, cycles: list[int]) -> tuple[np.ndarray, np.ndar
     return np.asarray(nodes), np.asarray(times), spans
 
 
+def _send_triangle_meshes(vis: Any, kin: _Kinematics) -> None:
+    """Replace the Collada objects of coloured segments by their triangles with a Phong material
+    (see :attr:`_Kinematics.triangle_meshes`); the Collada commands are dropped from the record."""
+    if not kin.triangle_meshes:
+        return
+    import meshcat.geometry as mg
+    from pinocchio.visualize.meshcat_visualizer import loadMesh
+
+    paths = {kin.visual_path(name) for name in kin.triangle_meshes}
+    full = {vis[p].path.lower() for p in paths}
+    vis.window.commands = [c for c in vis.window.commands
+                           if not (type(c).__name__ in ("SetObject", "DaeMeshGeometry") and getattr(c, "path", None) is not None
+                                   and c.path.lower() in full)]
+    for g in kin.visual.geometryObjects:
+        if g.name in kin.triangle_meshes:
+            rgb = np.clip(np.asarray(g.meshColor[:3], dtype=float), 0.0, 1.0)
+            color = int(round(255 * rgb[0])) * 65536 + int(round(255 * rgb[1])) * 256 + int(round(255 * rgb[2]))
+            vis[kin.visual_path(g.name)].set_object(loadMesh(g.geometry), mg.MeshPhongMaterial(color=color))
+
+
 def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 50) -> ReplayScene:
     """Meshcat scene of ``run`` (visuals, fatigue markers, camera) and its animation.
 
@@ -314,6 +341,7 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
     viz = MeshcatVisualizer(kin.model, None, kin.visual)
     viz.initViewer(viewer=vis)
     viz.loadViewerModel(rootNodeName=ROOT)
+    _send_triangle_meshes(vis, kin)
     for jid in kin.joint_ids:
         for sign in ("plus", "minus"):
             path = kin.marker_path(kin.model.names[jid], sign)

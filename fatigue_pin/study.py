@@ -66,6 +66,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
     "model": {
         "urdf": (_is_str, "a bundled model name, an example-robot-data name or a URDF path", REQUIRED),
         "gravity": (_is_numbers, "a list of 3 numbers (m/s^2)", None),
+        "payload": (_is_table, "a table { frame, mass (kg), com (m), inertia (kg m^2) }", None),
     },
     "task": {
         "cycle_duration": (_is_number, "a duration in seconds > 0", REQUIRED),
@@ -74,6 +75,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "final_node_offset": (_is_int, "0 or -1", 0),
         "targets": (lambda v: isinstance(v, list) and all(_is_table(x) for x in v), "an array of tables [[task.targets]]", []),
         "ranges": (lambda v: isinstance(v, list) and all(_is_table(x) for x in v), "an array of tables [[task.ranges]]", []),
+        "planes": (lambda v: isinstance(v, list) and all(_is_table(x) for x in v), "an array of tables [[task.planes]]", []),
     },
     "transcription": {
         "substeps": (_is_int, "an integer >= 1", 5),
@@ -88,7 +90,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "advance": (_is_int, "an integer number of cycles >= 1", 1),
         "max_cycles": (_is_int, "an integer number of cycles >= 1", None),
         "end_tolerance": (_is_number, "a fraction of the joint ranges in [0, 1)", 0.01),
-        "guess": (_is_str, "'rest' or 'physical'", "rest"),
+        "guess": (_is_str, "'rest', 'physical' or 'ik'", "rest"),
         "failure_iterations": (_is_number, "a multiple of the median window iterations >= 1", 10.0),
         "min_iterations": (_is_int, "an integer >= 0", 200),
         "warmup": (_is_int, "an integer >= 0", 3),
@@ -114,6 +116,72 @@ TARGET_KEYS: dict[str, Check] = {
     "at": (_is_number, "a phase of the cycle in [0, 1)", 0.0),
     "tolerance": (_is_number, "a tolerance >= 0", 0.0),
 }
+FRAME_TARGET_KEYS: dict[str, Check] = {  # a target with `frame` (issue 13: Cartesian tasks)
+    "frame": (_is_str, "a frame name of the model (a link or tool frame)", REQUIRED),
+    "position": (_is_numbers, "3 numbers (m, world frame)", None),
+    "rpy": (_is_numbers, "3 roll-pitch-yaw angles (rad, world frame)", None),
+    "at": (_is_number, "a phase of the cycle in [0, 1)", 0.0),
+    "tolerance": (_is_number, "a tolerance >= 0 (m)", 0.0),
+    "shape": (_is_str, "'ball' or 'box'", "ball"),
+    "angle_tolerance": (_is_number, "an angle in (0, pi] (rad)", 0.05),
+}
+PLANE_KEYS: dict[str, Check] = {
+    "frame": (_is_str, "a frame name of the model (a link or tool frame)", REQUIRED),
+    "normal": (_is_numbers, "3 numbers, not all 0 (world frame)", REQUIRED),
+    "offset": (_is_number, "a distance (m): normal . p >= offset", REQUIRED),
+    "at": (_is_number, "a phase of the cycle in [0, 1) (default: every node)", None),
+}
+PAYLOAD_KEYS: dict[str, Check] = {
+    "frame": (_is_str, "a frame name of the model (a link or tool frame)", REQUIRED),
+    "mass": (_is_number, "a mass >= 0 (kg)", REQUIRED),
+    "com": (_is_numbers, "3 numbers (m, in the frame's axes)", [0.0, 0.0, 0.0]),
+    "inertia": (_is_numbers, "6 numbers ixx, ixy, ixz, iyy, iyz, izz (kg m^2, about the com, frame axes)", None),
+}
+
+
+def _cartesian_tables(out: dict[str, Any]) -> None:
+    """Fill and check the tables of Cartesian tasks and payloads (frame targets, planes,
+    model.payload); a target table has either joint + value or frame + position / rpy."""
+    targets = []
+    for i, t in enumerate(out["task"]["targets"]):
+        where = f"task.targets[{i}]"
+        if isinstance(t, dict) and "frame" in t:
+            t = {k: v for k, v in _fill(t, FRAME_TARGET_KEYS, where).items() if v is not None}
+            if "position" not in t and "rpy" not in t:
+                raise StudyError(f"missing key {where}.position: a frame target needs a position (3 numbers, m) and/or rpy (rad)")
+            for key in ("position", "rpy"):
+                if key in t and len(t[key]) != 3:
+                    raise StudyError(f"{where}.{key} = {t[key]!r}: expected {FRAME_TARGET_KEYS[key][1]}")
+            if t["shape"] not in ("ball", "box"):
+                raise StudyError(f"{where}.shape = {t['shape']!r}: expected 'ball' or 'box'")
+            if not 0 < t["angle_tolerance"] <= math.pi:
+                raise StudyError(f"{where}.angle_tolerance = {t['angle_tolerance']!r}: expected an angle in (0, pi] (rad)")
+        elif isinstance(t, dict) and "joint" not in t:
+            raise StudyError(f"{where}: expected either joint + value (a joint target) or frame + position (a frame target)")
+        else:
+            t = _fill(t, TARGET_KEYS, where)
+        targets.append(t)
+    out["task"]["targets"] = targets
+    planes = []
+    for i, t in enumerate(out["task"]["planes"]):
+        t = {k: v for k, v in _fill(t, PLANE_KEYS, f"task.planes[{i}]").items() if v is not None}
+        if len(t["normal"]) != 3 or not any(t["normal"]):
+            raise StudyError(f"task.planes[{i}].normal = {t['normal']!r}: expected {PLANE_KEYS['normal'][1]}")
+        if "at" in t and not 0 <= t["at"] < 1:
+            raise StudyError(f"task.planes[{i}].at = {t['at']!r}: expected a phase of the cycle in [0, 1)")
+        planes.append(t)
+    out["task"]["planes"] = planes
+    if out["model"].get("payload") is not None:
+        p = {k: v for k, v in _fill(out["model"]["payload"], PAYLOAD_KEYS, "model.payload").items() if v is not None}
+        if p["mass"] < 0:
+            raise StudyError(f"model.payload.mass = {p['mass']!r}: expected a mass >= 0 (kg)")
+        if len(p["com"]) != 3:
+            raise StudyError(f"model.payload.com = {p['com']!r}: expected {PAYLOAD_KEYS['com'][1]}")
+        if "inertia" in p and len(p["inertia"]) != 6:
+            raise StudyError(f"model.payload.inertia = {p['inertia']!r}: expected {PAYLOAD_KEYS['inertia'][1]}")
+        out["model"]["payload"] = p
+
+
 RANGE_KEYS: dict[str, Check] = {
     "joint": (_is_str, "a joint name", REQUIRED),
     "lower": (_is_number, "a joint position (rad or m)", REQUIRED),
@@ -129,7 +197,7 @@ RANGES: dict[str, Callable[[Any], bool]] = {
     "transcription.integrator": lambda v: v == "rk4",
     "transcription.parallel": lambda v: v in ("auto", "serial", "openmp", "thread"),
     "horizon.advance": lambda v: v >= 1,
-    "horizon.guess": lambda v: v in ("rest", "physical"),
+    "horizon.guess": lambda v: v in ("rest", "physical", "ik"),
     "horizon.failure_iterations": lambda v: v >= 1,
     "horizon.min_iterations": lambda v: v >= 0,
     "horizon.warmup": lambda v: v >= 0,
@@ -271,7 +339,7 @@ def normalise(data: dict[str, Any]) -> dict[str, Any]:
         raise StudyError("missing table [fatigue]: expected a fatigue model and its parameters (or a preset)")
     out["fatigue"] = _fatigue_table(data["fatigue"])
     out["costs"] = _costs_table(data.get("costs", {}))
-    out["task"]["targets"] = [_fill(t, TARGET_KEYS, f"task.targets[{i}]") for i, t in enumerate(out["task"]["targets"])]
+    _cartesian_tables(out)  # joint and frame targets, planes, model.payload
     out["task"]["ranges"] = [_fill(t, RANGE_KEYS, f"task.ranges[{i}]") for i, t in enumerate(out["task"]["ranges"])]
     labels = data.get("labels", {})
     if not isinstance(labels, dict) or not all(isinstance(v, (str, int, float, bool)) for v in labels.values()):
@@ -328,7 +396,7 @@ def to_toml(data: dict[str, Any]) -> str:
     def table(header: str, values: dict[str, Any]) -> None:
         lines.append(f"[{header}]")
         for k, v in values.items():
-            if v is None or (isinstance(v, (list, dict)) and k in ("targets", "ranges", "joints")):
+            if v is None or (isinstance(v, (list, dict)) and k in ("targets", "ranges", "planes", "joints")):
                 continue
             lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
         lines.append("")
@@ -339,8 +407,8 @@ def to_toml(data: dict[str, Any]) -> str:
     for joint, sub in fat.get("joints", {}).items():
         table(f"fatigue.joints.{_toml_key(joint)}", sub)
     table("task", data["task"])
-    for kind in ("targets", "ranges"):
-        for item in data["task"][kind]:
+    for kind in ("targets", "ranges", "planes"):
+        for item in data["task"].get(kind, []):
             lines.append(f"[[task.{kind}]]")
             lines += [f"{k} = {_toml_value(v)}" for k, v in item.items()]
             lines.append("")
@@ -436,7 +504,13 @@ class Study:
         from fatigue_pin.model import resolve_model
 
         m = self.data["model"]
-        return resolve_model(m["urdf"], gravity=m.get("gravity"))
+        payload = None
+        if m.get("payload") is not None:
+            from fatigue_pin.model import Payload
+
+            p = m["payload"]
+            payload = Payload(p["frame"], p["mass"], tuple(p.get("com", (0.0, 0.0, 0.0))), p.get("inertia"))
+        return resolve_model(m["urdf"], gravity=m.get("gravity"), payload=payload)
 
     def fatigue_spec(self, model):
         """Fatigue models of every half, as :meth:`SignedTorqueActuators.from_model` takes them."""
@@ -461,11 +535,20 @@ class Study:
         return spec
 
     def task(self):
-        from fatigue_pin.task import JointRange, JointTarget, Task
+        from fatigue_pin.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, Task
 
         t = self.data["task"]
-        items = [JointTarget(x["joint"], x["value"], x["at"], x["tolerance"]) for x in t["targets"]]
+        items = []
+        for x in t["targets"]:
+            if "frame" not in x:
+                items.append(JointTarget(x["joint"], x["value"], x["at"], x["tolerance"]))
+                continue
+            if "position" in x:
+                items.append(FrameTarget(x["frame"], x["position"], x["at"], x["tolerance"], x["shape"]))
+            if "rpy" in x:
+                items.append(FrameOrientation(x["frame"], x["rpy"], x["at"], x["angle_tolerance"]))
         items += [JointRange(x["joint"], x["lower"], x["upper"]) for x in t["ranges"]]
+        items += [FramePlane(x["frame"], x["normal"], x["offset"], x.get("at")) for x in t.get("planes", [])]
         return Task(t["cycle_duration"], t["intervals_per_cycle"], tuple(items),
                     None if t.get("q_init") is None else tuple(t["q_init"]), t["final_node_offset"])
 

@@ -11,6 +11,10 @@ NLP parameters. Kinds:
 * :class:`JointRange`: joint ``joint`` within ``[lower, upper]`` at every node;
 * :class:`StateConstraint`: any expression of the state (a ``casadi.Function`` of x, built by the
   caller from the model) within bounds at a phase, or at every node;
+* :class:`FrameTarget`, :class:`FramePlane`, :class:`FrameOrientation`: Cartesian items (a frame
+  at a point within a ball or box, a frame above a plane, a frame's orientation); each builds its
+  :class:`StateConstraint` from the model's frame kinematics (``constraint(model, layout)``,
+  gathered by :meth:`Task.expression_constraints`);
 * the cyclic end condition of a sliding-horizon window is added by the horizon driver
   (``end_tolerance`` of :class:`fatigue_pin.transcription.Ocp`).
 
@@ -115,7 +119,207 @@ class StateConstraint:
             object.__setattr__(self, "at", _phase(owner, self.at))
 
 
-TaskItem = Union[JointTarget, JointRange, StateConstraint]
+def _vector(owner: str, name: str, value: object, n: int = 3, what: str = "3 finite numbers") -> tuple[float, ...]:
+    try:
+        a = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}") from None
+    if a.size != n or not np.all(np.isfinite(a)):
+        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}")
+    return tuple(float(x) for x in a)
+
+
+def _function_name(text: str) -> str:
+    """A valid casadi.Function name from a label (letters, digits, single underscores)."""
+    import re
+
+    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", text)).strip("_")
+    return name if name[:1].isalpha() else f"f_{name}"
+
+
+def _check_frame(owner: str, model, frame: str) -> None:
+    from fatigue_pin.errors import ModelError
+    from fatigue_pin.kinematics import frame_id
+
+    try:
+        frame_id(model.pin_model, frame)
+    except ModelError as exc:
+        raise TaskError(f"{owner}: {exc}") from None
+
+
+#: shapes of the tolerance region of a :class:`FrameTarget`
+FRAME_TARGET_SHAPES = ("ball", "box")
+
+
+@dataclass(frozen=True)
+class FrameTarget:
+    """The origin of frame ``frame`` at ``position`` (m, world frame) at phase ``at`` of every
+    cycle, within ``tolerance`` (m): a ball of that radius (``shape = "ball"``) or a box of that
+    half-width (``"box"``). A zero tolerance pins the point (three equality rows).
+
+    It becomes a :class:`StateConstraint` (:meth:`constraint`) on the frame position from
+    Pinocchio's kinematics on CasADi symbols (:meth:`RobotModel.frame_position`). The ball is the
+    row ``(|p - position|^2 - tolerance^2) / (2 tolerance) <= 0``, about ``|p - position| -
+    tolerance`` near its surface, so the solver's constraint tolerance is in metres.
+    """
+
+    frame: str
+    position: tuple[float, float, float]
+    at: float = 0.0
+    tolerance: float = 0.0
+    shape: str = "ball"
+
+    def __post_init__(self) -> None:
+        owner = f"FrameTarget({self.frame!r})"
+        object.__setattr__(self, "position", _vector(owner, "position", self.position, what="3 finite numbers (m, world frame)"))
+        object.__setattr__(self, "at", _phase(owner, self.at))
+        tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0 (m)")
+        if tol < 0:
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a finite tolerance >= 0 (m)")
+        object.__setattr__(self, "tolerance", tol)
+        if self.shape not in FRAME_TARGET_SHAPES:
+            raise TaskError(f"{owner}.shape = {self.shape!r}: expected one of {list(FRAME_TARGET_SHAPES)}")
+
+    @property
+    def name(self) -> str:
+        return f"{self.frame}_position_at_{self.at:g}"
+
+    def distance(self, p: np.ndarray) -> float:
+        """How far ``p`` (3,) is outside the tolerance region (m; <= 0 inside)."""
+        d = np.asarray(p, dtype=float) - np.asarray(self.position)
+        if self.shape == "box" or self.tolerance == 0.0:
+            return float(np.max(np.abs(d)) - self.tolerance)
+        return float(np.linalg.norm(d) - self.tolerance)
+
+    def constraint(self, model, layout) -> StateConstraint:
+        x = ca.SX.sym("x", layout.nx)
+        d = model.frame_position(self.frame)(x[layout.q]) - ca.DM(self.position)
+        tol = self.tolerance
+        if self.shape == "box" or tol == 0.0:
+            expr, lower, upper = d, -tol, tol
+        else:
+            expr, lower, upper = (ca.dot(d, d) - tol * tol) / (2 * tol), -np.inf, 0.0
+        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [expr]), lower, upper, self.at)
+
+    def check(self, model, q_init: np.ndarray | None = None) -> None:
+        """Unknown frame, or a target out of the frame's reach (:func:`fatigue_pin.kinematics.reach`)."""
+        from fatigue_pin.kinematics import reach
+
+        owner = f"task frame target of {self.frame!r}"
+        _check_frame(owner, model, self.frame)
+        centre, radius = reach(model.pin_model, self.frame)
+        distance = float(np.linalg.norm(np.asarray(self.position) - centre))
+        if distance - self.tolerance * math.sqrt(3) > radius:
+            raise TaskError(
+                f"{owner}: position {list(self.position)} m is out of reach: {distance:.3f} m from the base of its chain at "
+                f"{np.round(centre, 3).tolist()}, which reaches at most {radius:.3f} m (the sum of its link lengths)"
+            )
+        if q_init is not None and self.at == 0.0:  # node 0 is the initial state: it must meet the target
+            from fatigue_pin.kinematics import frame_placement
+
+            off = self.distance(frame_placement(model.pin_model, self.frame, q_init).translation)
+            if off > 1e-9:
+                raise TaskError(
+                    f"{owner}: the initial configuration puts the frame {off:.4f} m outside its phase-0 target "
+                    f"{list(self.position)} +- {self.tolerance} m; set task.q_init to a posture that meets it "
+                    "(fatigue_pin.ik.solve_ik finds one)"
+                )
+
+
+@dataclass(frozen=True)
+class FrameOrientation:
+    """Frame ``frame`` oriented as ``rotation`` (3 x 3, world frame; or 3 roll-pitch-yaw angles,
+    rad) within ``tolerance`` (rad, > 0) at phase ``at`` of every cycle: the row
+    ``cos(angle(R, rotation)) - cos(tolerance) >= 0``."""
+
+    frame: str
+    rotation: tuple[float, ...]
+    at: float = 0.0
+    tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        owner = f"FrameOrientation({self.frame!r})"
+        a = np.asarray(self.rotation, dtype=float)
+        if a.size == 3:
+            import pinocchio as pin
+
+            a = pin.rpy.rpyToMatrix(*_vector(owner, "rotation", a))
+        R = np.asarray(_vector(owner, "rotation", a, 9, "a rotation matrix (3 x 3) or 3 roll-pitch-yaw angles (rad)")).reshape(3, 3)
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise TaskError(f"{owner}.rotation = {self.rotation!r}: expected a rotation matrix (orthonormal, det 1)")
+        object.__setattr__(self, "rotation", tuple(R.reshape(-1)))
+        object.__setattr__(self, "at", _phase(owner, self.at))
+        tol = _finite(owner, "tolerance", self.tolerance, "an angle in (0, pi] (rad)")
+        if not 0 < tol <= math.pi:
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected an angle in (0, pi] (rad)")
+        object.__setattr__(self, "tolerance", tol)
+
+    @property
+    def name(self) -> str:
+        return f"{self.frame}_orientation_at_{self.at:g}"
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return np.asarray(self.rotation).reshape(3, 3)
+
+    def constraint(self, model, layout) -> StateConstraint:
+        x = ca.SX.sym("x", layout.nx)
+        R = model.frame_rotation(self.frame)(x[layout.q])
+        cos_angle = (ca.trace(ca.DM(self.matrix).T @ R) - 1) / 2
+        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [cos_angle - math.cos(self.tolerance)]), 0.0, np.inf, self.at)
+
+    def check(self, model, q_init: np.ndarray | None = None) -> None:
+        _check_frame(f"task orientation target of {self.frame!r}", model, self.frame)
+
+
+@dataclass(frozen=True)
+class FramePlane:
+    """The origin of frame ``frame`` on the positive side of a plane: ``normal . p(q) >= offset``
+    (m, world frame; ``normal`` is made unit) at every node (``at = None``), e.g. "the hand
+    stays above the table", or at phase ``at`` only."""
+
+    frame: str
+    normal: tuple[float, float, float]
+    offset: float
+    at: float | None = None
+
+    def __post_init__(self) -> None:
+        owner = f"FramePlane({self.frame!r})"
+        n = np.asarray(_vector(owner, "normal", self.normal, what="3 finite numbers, not all 0"))
+        if np.linalg.norm(n) < 1e-12:
+            raise TaskError(f"{owner}.normal = {self.normal!r}: expected 3 finite numbers, not all 0")
+        object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
+        object.__setattr__(self, "offset", _finite(owner, "offset", self.offset, "a finite distance (m)"))
+        if self.at is not None:
+            object.__setattr__(self, "at", _phase(owner, self.at))
+
+    @property
+    def name(self) -> str:
+        return f"{self.frame}_plane" + ("" if self.at is None else f"_at_{self.at:g}")
+
+    def height(self, p: np.ndarray) -> float:
+        """Signed distance of ``p`` (3,) above the plane (m)."""
+        return float(np.dot(self.normal, p) - self.offset)
+
+    def constraint(self, model, layout) -> StateConstraint:
+        x = ca.SX.sym("x", layout.nx)
+        p = model.frame_position(self.frame)(x[layout.q])
+        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [ca.dot(ca.DM(self.normal), p)]), self.offset, np.inf, self.at)
+
+    def check(self, model, q_init: np.ndarray | None = None) -> None:
+        """Unknown frame, or an initial configuration below the plane (a bound over every node)."""
+        owner = f"task plane of {self.frame!r}"
+        _check_frame(owner, model, self.frame)
+        if q_init is not None and self.at is None:
+            from fatigue_pin.kinematics import frame_placement
+
+            h = self.height(frame_placement(model.pin_model, self.frame, q_init).translation)
+            if h < -1e-9:
+                raise TaskError(f"{owner}: the initial configuration puts the frame {-h:.4f} m below the plane "
+                                f"normal {list(self.normal)} . p >= {self.offset}; expected q_init on its positive side")
+
+
+TaskItem = Union[JointTarget, JointRange, StateConstraint, FrameTarget, FrameOrientation, FramePlane]
 
 
 @dataclass(frozen=True)
@@ -149,8 +353,9 @@ class Task:
         object.__setattr__(self, "intervals_per_cycle", int(n))
         object.__setattr__(self, "items", tuple(self.items))
         for item in self.items:
-            if not isinstance(item, (JointTarget, JointRange, StateConstraint)):
-                raise TaskError(f"task item {item!r}: expected a JointTarget, JointRange or StateConstraint")
+            if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and not callable(getattr(item, "constraint", None)):
+                raise TaskError(f"task item {item!r}: expected a JointTarget, JointRange, StateConstraint or an item "
+                                "with a constraint(model, layout) method (FrameTarget, FramePlane, FrameOrientation)")
             at = getattr(item, "at", None)
             if at is not None and abs(at * n - round(at * n)) > 1e-9:
                 raise TaskError(
@@ -178,6 +383,29 @@ class Task:
     @property
     def state_constraints(self) -> tuple[StateConstraint, ...]:
         return tuple(i for i in self.items if isinstance(i, StateConstraint))
+
+    @property
+    def frame_targets(self) -> tuple[FrameTarget, ...]:
+        return tuple(i for i in self.items if isinstance(i, FrameTarget))
+
+    def expression_constraints(self, model, layout) -> tuple[StateConstraint, ...]:
+        """Every constraint row of the task, in item order: its :class:`StateConstraint` items and
+        the ones its other items build from the model (``item.constraint(model, layout)``: frame
+        targets, planes, orientations). Names are made unique (``_2``, ``_3``, ...)."""
+        out: list[StateConstraint] = []
+        seen: dict[str, int] = {}
+        for item in self.items:
+            if isinstance(item, StateConstraint):
+                sc = item
+            elif callable(getattr(item, "constraint", None)):
+                sc = item.constraint(model, layout)
+            else:
+                continue
+            seen[sc.name] = seen.get(sc.name, 0) + 1
+            if seen[sc.name] > 1:
+                sc = StateConstraint(f"{sc.name}_{seen[sc.name]}", sc.expression, sc.lower, sc.upper, sc.at)
+            out.append(sc)
+        return tuple(out)
 
     def nodes(self, at: float | None, n_intervals: int) -> list[int]:
         """Nodes of a horizon of ``n_intervals`` intervals at phase ``at`` of every cycle (every
@@ -212,6 +440,9 @@ class Task:
         bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
         if bad:
             raise TaskError(f"task initial configuration q_init = {q.tolist()} is outside the range of joints {bad}")
+        for item in self.items:  # frame targets, planes, orientations: unknown frames, reach
+            if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and callable(getattr(item, "check", None)):
+                item.check(model, q)
 
     def initial_configuration(self, model) -> np.ndarray:
         """Initial q (rad or m), shape (nq,)."""

@@ -239,7 +239,7 @@ class OcpSolution:
 
 
 #: initial-guess strategies of :meth:`Ocp.initial_guess`
-GUESSES = ("rest", "physical")
+GUESSES = ("rest", "physical", "ik")
 
 
 class Ocp:
@@ -255,7 +255,7 @@ class Ocp:
         solver: IPOPT settings.
         end_tolerance: if set, q and qdot at the last node are bounded to a reference state
             +- end_tolerance * (their bound range): the cyclic end condition of a window.
-        guess: the default initial guess, ``rest`` or ``physical``.
+        guess: the default initial guess, ``rest``, ``physical`` or ``ik``.
         functions: interval functions to reuse (built from ``problem`` and ``transcription`` if
             None); pass the ones of another Ocp of the same problem to skip rebuilding them.
         progress: where a compile reports itself (a Reporter or a line callback; default quiet).
@@ -338,7 +338,7 @@ class Ocp:
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
         # state constraints of the task: expression rows with parametric bounds
         self._state_constraints = []
-        for sc in self.task.state_constraints:
+        for sc in self.task.expression_constraints(self.model, layout):  # StateConstraints, frame targets, planes
             if sc.expression.size1_in(0) != nx:
                 raise ParameterError(f"task state constraint {sc.name!r} takes {sc.expression.size1_in(0)} inputs; expected nx = {nx}")
             nodes = self.task.nodes(sc.at, N)
@@ -492,9 +492,13 @@ class Ocp:
         return np.tile(x_init, (self.n_intervals + 1, 1)), np.zeros((self.n_intervals, self.layout.nu))
 
     def initial_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The initial guess named by ``guess`` (``rest`` or ``physical``)."""
+        """The initial guess named by ``guess`` (``rest``, ``physical`` or ``ik``)."""
         if self.guess == "physical":
             return self.physical_guess(x_init)
+        if self.guess == "ik":  # inverse kinematics of the frame targets (fatigue_pin.ik)
+            from fatigue_pin.ik import ik_guess
+
+            return ik_guess(self, x_init)
         return self.rest_guess(x_init)
 
     def physical_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/tuple.h>
 
 #include <casadi/config.h>
 
@@ -31,6 +32,14 @@ namespace
     model.loadFromString(model_text); // throws boost::archive::archive_exception on bad input
     return fatigue_pin::serialized_sx_dynamics(model);
   }
+
+  std::tuple<std::string, std::string, std::string>
+  frame_kinematics_from_string(const std::string & model_text, std::size_t frame_id)
+  {
+    pinocchio::Model model;
+    model.loadFromString(model_text);
+    return fatigue_pin::serialized_sx_frame_kinematics(model, frame_id);
+  }
 } // namespace
 
 NB_MODULE(_pinocchio_casadi, m)
@@ -43,4 +52,10 @@ NB_MODULE(_pinocchio_casadi, m)
     "Build (aba, rnea) for a model given as `pinocchio.Model.saveToString()`.\n\n"
     "Returns two strings for `casadi.Function.deserialize`: aba(q, v, tau) -> ddq and\n"
     "rnea(q, v, a) -> tau.");
+  m.def(
+    "frame_kinematics_from_string", &frame_kinematics_from_string, nb::arg("model_text"),
+    nb::arg("frame_id"),
+    "Frame kinematics of frame `frame_id` of a model given as `pinocchio.Model.saveToString()`.\n\n"
+    "Returns three strings for `casadi.Function.deserialize`: position(q) -> p (3),\n"
+    "rotation(q) -> R (3x3) and velocity(q, v) -> pdot (3, LOCAL_WORLD_ALIGNED), world frame.");
 }

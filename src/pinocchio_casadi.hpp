@@ -5,7 +5,9 @@
 // the Python module with the model deserialisation (pinocchio_casadi.cpp) compiles in parallel.
 #pragma once
 
+#include <cstddef>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "pinocchio/multibody.hpp"
@@ -15,4 +17,11 @@ namespace fatigue_pin
   /// Runs pinocchio::aba and pinocchio::rnea on casadi::SX symbols over `model` and returns the
   /// serialized casadi Functions (aba(q, v, tau) -> ddq, rnea(q, v, a) -> tau).
   std::pair<std::string, std::string> serialized_sx_dynamics(const pinocchio::Model & model);
+
+  /// Runs pinocchio::forwardKinematics, updateFramePlacement and getFrameVelocity
+  /// (LOCAL_WORLD_ALIGNED) on casadi::SX symbols for frame `frame_id` of `model` and returns the
+  /// serialized casadi Functions position(q) -> p (3), rotation(q) -> R (3x3) and
+  /// velocity(q, v) -> pdot (3), all in the world frame (pinocchio_casadi_kinematics.cpp).
+  std::tuple<std::string, std::string, std::string>
+  serialized_sx_frame_kinematics(const pinocchio::Model & model, std::size_t frame_id);
 } // namespace fatigue_pin
