@@ -145,8 +145,11 @@ def intermittent_et_closed_form(
         return math.inf
     if R <= 0.0:
         # No recovery: mf grows by F TL d T per cycle.
-        k = math.floor(L / (F * TL * d * T))
-        return k * T + (L - k * F * TL * d * T) / (F * TL)
+        inc = F * TL * d * T  # growth of mf per "on" part
+        k = max(0, math.ceil(L / inc) - 1)  # the "on" part in which mf reaches L
+        while k > 0 and k * inc >= L:
+            k -= 1
+        return k * T + (L - k * inc) / (F * TL)
     A = F * TL / R
     if A <= L:
         return math.inf
@@ -204,6 +207,7 @@ def endurance_time(
     method: str = "LSODA",
     rtol: float = 1e-8,
     atol: float = 1e-10,
+    steady_stop: bool = True,
 ) -> float:
     """Endurance time (s) of a task at target load ``TL`` by forward simulation of ``model``.
 
@@ -211,7 +215,9 @@ def endurance_time(
     held from t = 0. Intermittent: each cycle of ``cycle_s`` seconds asks for ``TL`` during its
     first ``duty_cycle * cycle_s`` seconds and 0 during the rest. The result is the first time at
     which ``ma + mr < TL`` during an "on" part (see the module docstring), or ``inf`` if that does
-    not happen before ``t_max``.
+    not happen before ``t_max``. With ``steady_stop``, an intermittent task also returns ``inf``
+    once the end-of-"on" margins ``ma + mr - TL`` of successive cycles converge geometrically to a
+    limit above 1e-4 (Aitken extrapolation), instead of simulating up to ``t_max``.
 
     Raises:
         ParameterError: a bad load, duty cycle or cycle length, or a model without ``ma``/``mr``.
@@ -242,10 +248,17 @@ def endurance_time(
 
     T = float(cycle_s)
     f_off, J_off = _fixed_functions(model, 0.0)
-    off_opts = dict(method=method, rtol=rtol, atol=atol)
+
+    def ma_negative(t: float, y: np.ndarray) -> float:
+        return y[ia]
+
+    ma_negative.terminal = True
+    ma_negative.direction = -1
+    off_opts = dict(method=method, rtol=rtol, atol=atol, events=ma_negative)
     if method in ("Radau", "BDF", "LSODA"):
         off_opts["jac"] = J_off
     t0 = 0.0
+    margins: list[float] = []
     while t0 < t_max:
         t_on_end = min(t0 + d * T, t_max)
         out = solve_ivp(f_on, (t0, t_on_end), y, **opts)
@@ -255,11 +268,52 @@ def endurance_time(
         y = out.y[:, -1]
         if t_on_end >= t_max:
             break
-        out = solve_ivp(f_off, (t_on_end, t0 + T), y, **off_opts)
-        _check_solve(out, model, 0.0)
-        y = out.y[:, -1]
+        margins.append(float(y[ia] + y[ir] - TL))
+        if steady_stop and _settles_above(margins):
+            return math.inf
+        y = _rest(f_off, off_opts, y, t_on_end, t0 + T, ia, model)
         t0 += T
     return math.inf
+
+
+def _rest(f_off, off_opts: dict, y: np.ndarray, t_a: float, t_b: float, ia: int, model: FatigueModel) -> np.ndarray:
+    """Integrate a rest (TL = 0) from ``t_a`` to ``t_b``. ``ma`` decays to 0 and never crosses it in
+    the exact solution; when the integrator's round-off takes it below 0, it is set to 0 (a change
+    below ``atol``), where it stays exactly. Without this, Xia's 3CC-r switch ``R' = r R while
+    ma >= TL`` would flicker between ``r R`` and ``R`` with the sign of the round-off."""
+    out = solve_ivp(f_off, (t_a, t_b), y, **off_opts)
+    _check_solve(out, model, 0.0)
+    if not out.t_events[0].size or out.t_events[0][0] >= t_b:
+        return out.y[:, -1].copy()
+    # ma = 0 with TL = 0 is an equilibrium of ma (C = 0, F ma = 0): integrate the rest of the phase
+    # from there without the event (a zero-to-zero "crossing" would fire it again at once).
+    y = out.y_events[0][0].copy()
+    y[ia] = 0.0
+    t_a = float(out.t_events[0][0])
+    opts = {k: v for k, v in off_opts.items() if k != "events"}
+    out = solve_ivp(f_off, (t_a, t_b), y, **opts)
+    _check_solve(out, model, 0.0)
+    return out.y[:, -1].copy()
+
+
+def _settles_above(margins: list[float], tol: float = 1e-4) -> bool:
+    """Whether the end-of-"on" margins ``ma + mr - TL`` of successive cycles converge (geometrically,
+    Aitken's extrapolation agreeing over two consecutive estimates) to a limit above ``tol``."""
+    if len(margins) < 5:
+        return False
+    limits = []
+    for k in (len(margins) - 1, len(margins) - 2):
+        d1, d0 = margins[k] - margins[k - 1], margins[k - 1] - margins[k - 2]
+        if abs(d1) < 1e-13 and abs(d0) < 1e-13:
+            limits.append(margins[k])
+            continue
+        if d0 == 0.0:
+            return False
+        q = d1 / d0
+        if not 0.0 < q < 0.999:
+            return False
+        limits.append(margins[k] + d1 * q / (1.0 - q))
+    return min(limits) > tol and abs(limits[0] - limits[1]) < 0.1 * tol
 
 
 def _check_solve(out, model: FatigueModel, TL: float) -> None:
@@ -390,14 +444,14 @@ def format_table(tab: EnduranceTable) -> str:
 
 def format_comparison(tables: Sequence[EnduranceTable]) -> str:
     """One Markdown table: per joint and load, the 3CC closed form vs the power model, with the
-    relative error, and per joint the RMS of the log error."""
+    relative error, and per joint the RMS of the log error and of the error in seconds."""
     loads = tables[0].loads
-    head = "| joint | " + " | ".join(f"TL {x:.1f}" for x in loads) + " | RMS log error |"
+    head = "| joint | " + " | ".join(f"TL {x:.1f}" for x in loads) + " | RMS log error | RMS error (s) |"
     lines = [
         "3CC closed form (Frey-Law et al. 2012 F, R) vs Frey-Law & Avin (2010) power model: ET (s) 3CC / power (error)",
         "",
         head,
-        "|" + "---|" * (len(loads) + 2),
+        "|" + "---|" * (len(loads) + 3),
     ]
     for tab in tables:
         cells = [f"{_fmt(c)} / {_fmt(p)} ({_pct(c / p - 1 if np.isfinite(c) else np.nan)})"
@@ -405,7 +459,9 @@ def format_comparison(tables: Sequence[EnduranceTable]) -> str:
         with np.errstate(divide="ignore", invalid="ignore"):
             le = np.log(tab.et_closed / tab.et_power)
         rms = float(np.sqrt(np.mean(le[np.isfinite(le)] ** 2))) if np.isfinite(le).any() else math.nan
-        lines.append(f"| {tab.joint} | " + " | ".join(cells) + f" | {rms:.3f} |")
+        diff = tab.et_closed - tab.et_power
+        rms_s = float(np.sqrt(np.mean(diff[np.isfinite(diff)] ** 2))) if np.isfinite(diff).any() else math.nan
+        lines.append(f"| {tab.joint} | " + " | ".join(cells) + f" | {rms:.3f} | {rms_s:.1f} |")
     return "\n".join(lines)
 
 
@@ -482,7 +538,7 @@ def plot_endurance(path: Path | str, tables: Sequence[EnduranceTable], compariso
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, n, squeeze=False)[0]
     ax = axes[0]
-    fine = np.linspace(0.05, 1.0, 200)
+    fine = np.linspace(0.05, 0.98, 200)
     for k, tab in enumerate(tables):
         color = f"C{k}"
         ax.loglog(tab.loads, tab.et_sim, "o", color=color, label=f"{tab.name}: simulated")
