@@ -356,6 +356,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bound-tol", type=float, default=tol.bound, help=f"q, qdot, torques, fatigue states (default {tol.bound:g})")
     p.set_defaults(func=_cmd_verify)
 
+    from fatigue_pin.cli_fatigue import register as register_fatigue_commands
+
+    register_fatigue_commands(sub)  # endurance, calibrate
     return parser
 
 
