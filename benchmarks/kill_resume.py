@@ -123,7 +123,8 @@ def _env() -> dict[str, str]:
 
 def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tuple[int, bool, str | None, float]:
     """Run the child once. ``kill``: None (to the end), ("io", k): SIGKILL at its k-th write step,
-    ("time", s): SIGKILL s seconds after it has started working. Returns (items it reported
+    ("at", step): at the first announcement of a write step (``copy``, ``compact``, ``h5``,
+    ``h5-written``, ``fsync``, ``rename``), ("time", s): SIGKILL s seconds after it has started working. Returns (items it reported
     written, killed, the last write step it announced before dying or None, seconds of work)."""
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(out), str(n)], stdout=subprocess.PIPE,
@@ -143,7 +144,7 @@ def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tup
         elif line.startswith("IO "):
             steps += 1
             last = line.split()[1]
-            if kill is not None and kill[0] == "io" and steps == int(kill[1]):
+            if kill is not None and ((kill[0] == "io" and steps == int(kill[1])) or (kill[0] == "at" and last == kill[1])):
                 os.kill(proc.pid, signal.SIGKILL)
                 break
         elif line.startswith("FINISHED"):

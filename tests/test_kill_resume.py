@@ -23,17 +23,17 @@ def _check(fig, kills):
 def test_killed_sliding_run_resumes_to_the_same_result(tmp_path):
     """Killed just after the HDF5 edit of its first window's write (before the fsync and the
     rename), then, resumed, at the fsync of that write."""
-    fig = campaign("sliding", 5, 2, tmp_path, plan=[("io", 3), ("io", 4)], say=lambda _: None)
+    fig = campaign("sliding", 5, 2, tmp_path, plan=[("at", "h5-written"), ("at", "fsync")], say=lambda _: None)
     _check(fig, 2)
     assert fig.where == {"h5-written": 1, "fsync": 1}
 
 
 def test_killed_search_resumes_to_the_same_result(tmp_path):
-    """Killed in the HDF5 edit of its second write (the best run), once the step run of N = 1 is
+    """Killed at the byte copy of its second write (the best run), once the step run of N = 1 is
     stored but not yet its row of the search table: the resumed search solves N = 1 again."""
-    fig = campaign("max-cycles", 2, 1, tmp_path, plan=[("io", 7)], say=lambda _: None)
+    fig = campaign("max-cycles", 2, 1, tmp_path, plan=[("at", "copy")], say=lambda _: None)
     _check(fig, 1)
-    assert fig.where == {"h5": 1}
+    assert fig.where == {"copy": 1}
 
 
 @pytest.mark.slow
