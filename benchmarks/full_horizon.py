@@ -62,7 +62,7 @@ def main() -> None:
         wall = statistics.median(walls)
         it = int(statistics.median(iters))
         per_it = 1000 * wall / max(it, 1)
-        print(f"{n:>4} {ocp.build_time_s:>8.1f} {ocp.nlp.compile_time_s:>9.1f} {wall:>8.2f} {it:>5} {per_it:>8.1f} "
+        print(f"{n:>4} {ocp.build_time_s:>8.1f} {ocp.compile_time_s:>9.1f} {wall:>8.2f} {it:>5} {per_it:>8.1f} "
               f"{per_it / n:>13.2f} {wall / n:>8.3f} {PAPER_CODE_S_PER_CYCLE / (wall / n):>12.1f}x  {sol.status}", flush=True)
 
 

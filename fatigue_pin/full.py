@@ -97,7 +97,7 @@ def solution_to_run(ocp: Ocp, sol: OcpSolution, name: str, study: str = "", labe
         status=sol.status,
         wall_time_s=sol.wall_time_s,
         build_time_s=ocp.build_time_s,
-        compile_time_s=ocp.nlp.compile_time_s,
+        compile_time_s=ocp.compile_time_s,
         iterations=sol.iterations,
         objective=sol.objective,
     )
@@ -159,7 +159,7 @@ def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | N
     rep = as_reporter(progress)
     rep.line(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
     ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles)
-    compiled = f", compiled in {ocp.nlp.compile_time_s:.1f} s" if ocp.nlp.compile_time_s else ""
+    compiled = f", compiled in {ocp.compile_time_s:.1f} s" if ocp.compile_time_s else ""
     rep.line(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")
     with rep.task(f"solving the {n_cycles}-cycle OCP with IPOPT"):
         sol = ocp.solve()

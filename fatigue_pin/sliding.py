@@ -182,7 +182,7 @@ class SlidingHorizon:
             status=str(table["status"][-1].decode()) if table.size else "not started",
             wall_time_s=float(table["wall_time_s"].sum()) if table.size else 0.0,
             build_time_s=build_time,
-            compile_time_s=ocp.nlp.compile_time_s,
+            compile_time_s=ocp.compile_time_s,
             iterations=int(table["iterations"].sum()) if table.size else 0,
             converged_windows=converged,
         )

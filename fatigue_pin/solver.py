@@ -17,19 +17,16 @@ into an ``nlpsol`` once and re-solves it with new parameter values as often as n
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import io
 import os
 import platform
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, TextIO
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -37,6 +34,8 @@ import numpy as np
 from fatigue_pin.errors import ParameterError
 from fatigue_pin.progress import Progress, as_reporter
 
+#: How a compiled NLP is built (see :class:`SolverOptions`).
+COMPILE_MODES = ("library", "nlp")
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
 
@@ -72,6 +71,13 @@ class SolverOptions:
             119 at 95 ms). Both together: 16 cycles from rest 101 iterations, 10.1 s against
             119, 11.9 s; 32 cycles 212, 44 s against 232, 54 s.
         ipopt: further IPOPT options, passed as they are (they override the fields above).
+        compile_mode: with ``compile``: ``library`` (default) compiles the interval functions and
+            the derivatives IPOPT needs of them once per model (:mod:`fatigue_pin.compiled`,
+            cached under a key without the horizon) and lets CasADi's virtual machine assemble
+            any horizon around them: a new horizon builds in seconds. ``nlp`` generates and
+            compiles the whole NLP of each horizon (about a minute each on arm26) and is faster
+            per iteration on long horizons (docs/ocp.md, "Compiled code").
+        compile_jobs: compiler processes for a library (default: every core).
     """
 
     linear_solver: str = "mumps"
@@ -87,8 +93,15 @@ class SolverOptions:
     mu_init: float = 1.0
     perturb_dec_fact: float = 0.6
     ipopt: dict[str, Any] = field(default_factory=dict)
+    compile_mode: str = "library"
+    compile_jobs: int | None = None
 
     def __post_init__(self) -> None:
+        if self.compile_mode not in COMPILE_MODES:
+            raise ParameterError(f"SolverOptions.compile_mode = {self.compile_mode!r}: expected one of {list(COMPILE_MODES)}")
+        if self.compile_jobs is not None and (isinstance(self.compile_jobs, bool) or not isinstance(self.compile_jobs, int)
+                                              or self.compile_jobs < 1):
+            raise ParameterError(f"SolverOptions.compile_jobs = {self.compile_jobs!r}: expected None or an integer >= 1")
         for name in ("tol", "constr_viol_tol"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
@@ -101,6 +114,18 @@ class SolverOptions:
             raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
         if self.max_wall_time is not None and not self.max_wall_time > 0:
             raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
+
+    @property
+    def library_mode(self) -> bool:
+        """Whether the interval functions run from a per-model compiled library."""
+        return self.compile and self.compile_mode == "library"
+
+    def build_options(self):
+        """Compiler, flags and cache folder for :mod:`fatigue_pin.compiled`."""
+        from fatigue_pin.compiled import BuildOptions
+
+        return BuildOptions(compiler=self.compiler, flags=tuple(self.compiler_flags), cache_dir=self.resolved_cache_dir(),
+                            jobs=self.compile_jobs)
 
     def ipopt_options(self) -> dict[str, Any]:
         """The option dictionary passed to ``nlpsol('ipopt')``."""
@@ -217,43 +242,6 @@ def _host_key(options: SolverOptions) -> bytes:
         return platform.machine().encode() + platform.processor().encode()
 
 
-class _DropLines(io.TextIOBase):
-    """A text stream that forwards everything but lines containing ``marker`` to ``stream``."""
-
-    def __init__(self, stream: TextIO, marker: str) -> None:
-        self._stream, self._marker, self._pending = stream, marker, ""
-
-    def write(self, text: str) -> int:
-        self._pending += text
-        *lines, self._pending = self._pending.split("\n")
-        for line in lines:
-            if self._marker not in line:
-                self._stream.write(line + "\n")
-        return len(text)
-
-    def flush(self) -> None:
-        if self._pending and self._marker not in self._pending:
-            self._stream.write(self._pending)
-        self._pending = ""
-        self._stream.flush()
-
-
-@contextlib.contextmanager
-def openmp_fallback_quiet() -> Iterator[None]:
-    """Silence CasADi's "not compiled with WITH_OPENMP" warning while a problem is built.
-
-    The PyPI CasADi has no OpenMP, so its virtual machine evaluates ``map(..., "openmp")``
-    serially and says so for every mapped function and derivative; the C generated for the
-    compiled NLP still carries the OpenMP pragmas, which :func:`_compile_shared` honours.
-    """
-    quiet = _DropLines(sys.stderr, "WITH_OPENMP")
-    with contextlib.redirect_stderr(quiet):
-        try:
-            yield
-        finally:
-            quiet.flush()
-
-
 class NlpSolver:
     """An Opti formulation turned into a reusable IPOPT solver.
 
@@ -288,9 +276,9 @@ class NlpSolver:
         self.compile_time_s = 0.0
         self.compiled_path: Path | None = None
         opts = options.ipopt_options()
-        if options.compile:
+        if options.compile and options.compile_mode == "nlp":
             self._source: dict[str, Any] | str = self._compiled(ca.nlpsol(name, "ipopt", nlp, opts), name)
-        else:
+        else:  # library mode: the interval functions in the graph are already compiled externals
             self._source = nlp
         #: one IPOPT instance per iteration limit (IPOPT options are fixed per instance)
         self._solvers: dict[int, ca.Function] = {int(options.max_iter): ca.nlpsol(name, "ipopt", self._source, opts)}

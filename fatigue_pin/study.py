@@ -108,6 +108,8 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "mu_init": (_is_number, "a barrier parameter > 0", 1.0),
         "perturb_dec_fact": (_is_number, "a factor in (0, 1)", 0.6),
         "ipopt": (_is_table, "a table of IPOPT options", {}),
+        "compile_mode": (_is_str, "'library' (once per model) or 'nlp' (once per horizon)", "library"),
+        "compile_jobs": (_is_int, "a number of compiler processes >= 1", None),
     },
 }
 TARGET_KEYS: dict[str, Check] = {

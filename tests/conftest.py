@@ -13,7 +13,9 @@ def small_curl(horizon: str = "full", cost: str = "fatigue-torque", preset: str 
     """The paper's curl with 10 intervals per cycle and 2 RK4 substeps, evaluated without
     compiling: solves in about a second."""
     kwargs.setdefault("solver", {"compile": False})
-    return curl_study(horizon, cost, preset, S, intervals_per_cycle=10, substeps=2, **kwargs)
+    kwargs.setdefault("intervals_per_cycle", 10)
+    kwargs.setdefault("substeps", 2)
+    return curl_study(horizon, cost, preset, S, **kwargs)
 
 
 @pytest.fixture(scope="session")

@@ -1,32 +1,11 @@
-"""Solver plumbing: compile flags and the filtered CasADi warning."""
+"""Solver plumbing: compile flags, modes and generated code."""
 
 from __future__ import annotations
-
-import io
-import sys
 
 import pytest
 
 from fatigue_pin.errors import ParameterError
-from fatigue_pin.solver import SolverOptions, _DropLines, _host_key, openmp_fallback_quiet
-
-
-def test_drop_lines_forwards_everything_else():
-    out = io.StringIO()
-    stream = _DropLines(out, "WITH_OPENMP")
-    stream.write("first line\nCasADi WARNING(not compiled WITH_OPENMP=ON)\nsec")
-    stream.write("ond line\nunterminated")
-    stream.flush()
-    assert out.getvalue() == "first line\nsecond line\nunterminated"
-
-
-def test_openmp_fallback_quiet_restores_stderr(capsys):
-    before = sys.stderr
-    with openmp_fallback_quiet():
-        print("WITH_OPENMP fallback", file=sys.stderr)
-        print("kept", file=sys.stderr)
-    assert sys.stderr is before
-    assert capsys.readouterr().err == "kept\n"
+from fatigue_pin.solver import SolverOptions, _host_key
 
 
 def test_cache_key_names_the_cpu_only_for_native_code():
@@ -71,3 +50,10 @@ def test_generated_nlp_source_needs_no_change_of_directory(tmp_path):
     finally:
         os.chdir(cwd)
     assert path.read_bytes() == (reference / "nlp_a.c").read_bytes()
+
+
+def test_compile_mode_is_validated_and_the_compiler_checked_only_when_compiling(tmp_path):
+    with pytest.raises(ParameterError, match="compile_mode = 'fast'"):
+        SolverOptions(compile_mode="fast")
+    options = SolverOptions(compiler="no-such-cc")  # exists without a compiler on PATH
+    assert options.library_mode and options.build_options().compiler == "no-such-cc"
