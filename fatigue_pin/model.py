@@ -288,30 +288,35 @@ def resolve_model(name: str | Path | None = None, gravity: object = None, payloa
     return load_model(path, g, payload)
 
 
-def _parse_urdf(path: Path) -> tuple[pin.Model | None, Exception | None, str]:
-    """``pin.buildModelFromUrdf`` with what its URDF parser prints on the standard error (file
-    descriptor 2) caught: (model or None, the exception or None, the parser's text). On success
-    the text is passed on to ``sys.stderr``."""
-    import os
-    import sys
-    import tempfile
+def _check_urdf_text(path: Path) -> None:
+    """Refuse, with one line, URDF files that the URDF parser would reject: not XML, no
+    ``<robot>`` root, joints without name, type, parent or child, revolute or prismatic joints
+    whose ``<limit>`` lacks ``effort`` or ``velocity`` (urdfdom prints its own complaints on the
+    process's standard error; checking first keeps errors on one line without redirecting it)."""
+    import xml.etree.ElementTree as ET
 
-    with tempfile.TemporaryFile() as caught:
-        sys.stderr.flush()
-        saved = os.dup(2)
-        os.dup2(caught.fileno(), 2)
-        try:
-            model, error = pin.buildModelFromUrdf(str(path)), None
-        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError
-            model, error = None, exc
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        caught.seek(0)
-        said = caught.read().decode(errors="replace")
-    if model is not None and said:
-        sys.stderr.write(said)
-    return model, error, said
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {exc}") from None
+    if root.tag != "robot":
+        raise ModelError(f"URDF file {str(path)!r} does not parse: the root element is <{root.tag}>; expected <robot>")
+    links = {link.get("name") for link in root.iter("link")}
+    for joint in root.iter("joint"):
+        name = joint.get("name")
+        if not name or not joint.get("type"):
+            raise ModelError(f"URDF file {str(path)!r} does not parse: a joint lacks its name or type attribute")
+        for end in ("parent", "child"):
+            tag = joint.find(end)
+            if tag is None or tag.get("link") not in links:
+                raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: no {end} link, or an unknown one")
+        limit = joint.find("limit")
+        if joint.get("type") in ("revolute", "prismatic"):
+            if limit is None:
+                raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: a {joint.get('type')} joint needs a <limit>")
+            for key in ("effort", "velocity"):
+                if limit.get(key) is None:
+                    raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: limit has no {key}")
 
 
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None) -> RobotModel:
@@ -334,12 +339,11 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
     path = bundled_urdf("arm26") if urdf is None else Path(urdf).expanduser()
     if not path.is_file():
         raise ModelError(f"URDF file not found: {str(path)!r} (expected the path of an existing .urdf file)")
-    model, exc, said = _parse_urdf(path)
-    if model is None:  # the parser's own lines (urdfdom prints them) name what is wrong
-        reasons = [line.removeprefix("Error:").strip() for line in said.splitlines()
-                   if line.strip() and not line.strip().startswith("at line ")]
-        reason = "; ".join(reasons[:3]) if reasons else " ".join(str(exc).split())
-        raise ModelError(f"URDF file {str(path)!r} does not parse: {reason}") from exc
+    _check_urdf_text(path)
+    try:
+        model = pin.buildModelFromUrdf(str(path))
+    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {' '.join(str(exc).split())}") from exc
     _validate_joints(model, path)
     if model.nv == 0:
         raise ModelError(f"{path}: the model has no movable joint")
