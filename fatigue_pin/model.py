@@ -302,7 +302,7 @@ def _check_urdf_text(path: Path) -> None:
     if root.tag != "robot":
         raise ModelError(f"URDF file {str(path)!r} does not parse: the root element is <{root.tag}>; expected <robot>")
     links = {link.get("name") for link in root.iter("link")}
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):  # not root.iter: <transmission> elements hold <joint name=...> too
         name = joint.get("name")
         if not name or not joint.get("type"):
             raise ModelError(f"URDF file {str(path)!r} does not parse: a joint lacks its name or type attribute")
