@@ -356,7 +356,26 @@ def _fsync(path: Path, directory: bool = False) -> None:
         os.close(fd)
 
 
-def _atomic_rewrite(path: Path, skip: set[str], fill: Any) -> None:
+def _check_room(path: Path, new_bytes: int) -> None:
+    """Refuse a write that cannot fit before HDF5 starts it: a copy of the file plus the new data
+    (with a margin for HDF5's metadata). HDF5 failing to write in the middle of an edit leaves its
+    library state in this process damaged (later calls may crash), so a full disk is detected
+    here whenever it can be."""
+    old = path.stat().st_size if path.exists() else 0
+    need = old + 2 * new_bytes + (64 << 10)
+    try:
+        st = os.statvfs(path.parent)
+    except OSError:
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < need:
+        raise ResultFileError(
+            f"cannot write {str(path)!r}: the disk is full ({free} bytes free, about {need} needed); "
+            "the previous file is unchanged"
+        )
+
+
+def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -> None:
     """Change ``path``: delete the groups in ``skip``, then ``fill(h5file)``.
 
     Under the file's lock, the current file is copied byte for byte beside it (``FILE.tmp``), the
@@ -373,6 +392,7 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with _locked(path):
+            _check_room(path, new_bytes)
             try:
                 compacted = _prepare(path, tmp)
                 with h5py.File(tmp, "a") as h5:
@@ -399,7 +419,9 @@ def write_run(path: str | Path, run: RunResult) -> Path:
     def fill(h5: h5py.File) -> None:
         _write_run(h5.create_group(run.name), run)
 
-    _atomic_rewrite(Path(path), {run.name}, fill)
+    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values()]
+    size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
+    _atomic_rewrite(Path(path), {run.name}, fill, new_bytes=size)
     return Path(path)
 
 

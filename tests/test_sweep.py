@@ -174,12 +174,15 @@ def test_bad_sweep_on_the_command_line_is_one_line(tmp_path, capsys):
 # -- running: in-process cluster (errors, damaged files, resume) -----------------------------------------
 
 
-@pytest.fixture()
+@pytest.fixture(scope="module")
 def thread_client():
-    """A Dask client on threads of this process (no sockets)."""
+    """A Dask client with one single-threaded worker process on 127.0.0.1. (Workers on threads
+    of this process would write HDF5 files while this thread writes the summary: HDF5 is not
+    built thread-safe, and that crashed with a segmentation fault.)"""
     from distributed import Client, LocalCluster
 
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, Client(cluster) as client:
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None) as cluster, \
+            Client(cluster) as client:
         yield client
 
 
