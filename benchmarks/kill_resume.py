@@ -118,7 +118,11 @@ class Figures:
 
 
 def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "OMP_NUM_THREADS": "1"}
+    """Children import the fatigue_pin this process imported (installed, or the tree on PYTHONPATH)."""
+    import fatigue_pin
+
+    home = str(Path(fatigue_pin.__file__).resolve().parents[1])
+    return {**os.environ, "PYTHONPATH": home + os.pathsep + os.environ.get("PYTHONPATH", ""), "OMP_NUM_THREADS": "1"}
 
 
 def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tuple[int, bool, str | None, float]:
@@ -128,7 +132,7 @@ def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tup
     written, killed, the last write step it announced before dying or None, seconds of work)."""
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(out), str(n)], stdout=subprocess.PIPE,
-                            stderr=subprocess.DEVNULL, text=True, env=_env())
+                            stderr=subprocess.DEVNULL, text=True, env=_env(), cwd=out.parent)
     timer = None
     written, steps, last, finished = 0, 0, None, False
     assert proc.stdout is not None

@@ -226,8 +226,7 @@ def test_concurrent_writers_lose_nothing(tmp_path):
     write_run(path, make_run("full/first"))
     script = tmp_path / "writer.py"
     script.write_text(CONCURRENT)
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    procs = [subprocess.Popen([sys.executable, str(script), str(path), str(k), str(ROOT / "tests")], env=env) for k in range(4)]
+    procs = [subprocess.Popen([sys.executable, str(script), str(path), str(k), str(ROOT / "tests")], cwd=tmp_path) for k in range(4)]
     assert all(p.wait(timeout=120) == 0 for p in procs)
     assert list_runs(path) == sorted(["full/first"] + [f"p{k}/r{i}" for k in range(4) for i in range(6)])
     assert sorted(read_search(path)) == [f"p{k}" for k in range(4)]

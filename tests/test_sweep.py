@@ -38,8 +38,13 @@ BIN = Path(sys.executable).parent
 
 
 def _env() -> dict[str, str]:
+    """The environment of child processes: they import the fatigue_pin this process imported
+    (the installed package, with its compiled extension, or the tree named by PYTHONPATH)."""
+    import fatigue_pin
+
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(REPO), *filter(None, [env.get("PYTHONPATH")])])
+    home = str(Path(fatigue_pin.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join([home, *filter(None, [env.get("PYTHONPATH")])])
     return env
 
 
@@ -307,7 +312,7 @@ def test_scheduler_sweep_survives_a_killed_worker_and_resumes(tmp_path):
             assert sockets and all(ip == "127.0.0.1" for _, ip, _ in sockets), sockets
             address = client.scheduler.address
             cmd = [sys.executable, "-m", "fatigue_pin.cli", "sweep", str(sweep_file), "--out", str(out), "--scheduler", address]
-            run = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            run = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
             killed = None
             deadline = time.monotonic() + 60
             while killed is None and run.poll() is None and time.monotonic() < deadline:
@@ -335,7 +340,7 @@ def test_scheduler_sweep_survives_a_killed_worker_and_resumes(tmp_path):
 
         # the same command again: every job is reused, nothing is solved (the workers are not needed)
         t0 = time.monotonic()
-        again = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=60)
+        again = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=60, cwd=tmp_path)
         assert again.returncode == 0, again.stdout + again.stderr
         assert "4 jobs: 4 already done, 0 to run" in again.stdout and "(0 run now)" in again.stdout
         assert all(r["reused"] == "true" for r in _csv_rows(out))
