@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import platform
 import shutil
 import subprocess
 import tempfile
@@ -225,21 +224,18 @@ def generate_nlp_source(solver: ca.Function, name: str, folder: Path) -> Path:
 
 def _is_native(flag: str) -> bool:
     """Whether a compiler flag tunes the code to this CPU (``-march=native``, ``-mtune=native``)."""
-    return flag.endswith("=native")
+    from fatigue_pin.compiled import is_native_flag
+
+    return is_native_flag(flag)
 
 
 def _host_key(options: SolverOptions) -> bytes:
     """What the cache key adds for code tuned to this CPU (``-march=native``): its model and
-    instruction-set flags, so a cache shared between machines (a network home directory) never
-    hands one machine's library to another."""
-    if not any(_is_native(flag) for flag in options.compiler_flags):
-        return b""
-    try:
-        lines = Path("/proc/cpuinfo").read_text().splitlines()
-        picked = [line for line in lines if line.startswith(("model name", "flags", "Features", "CPU part"))]
-        return "\n".join(sorted(set(picked))).encode()
-    except OSError:
-        return platform.machine().encode() + platform.processor().encode()
+    instruction-set flags (:func:`fatigue_pin.compiled.host_key`), so a cache shared between
+    machines never hands one machine's library to another."""
+    from fatigue_pin.compiled import host_key
+
+    return host_key(options.compiler_flags)
 
 
 class NlpSolver:
