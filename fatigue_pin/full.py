@@ -153,16 +153,17 @@ class OcpBuilder:
 
 
 def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | None = None, solver: SolverOptions | None = None,
-               guess: str = "rest", progress: Progress = None) -> tuple[Ocp, OcpSolution]:
+               guess: str = "rest", progress: Progress = None, end_tolerance: float | None = None) -> tuple[Ocp, OcpSolution]:
     """Build and solve one full-horizon OCP of ``n_cycles`` cycles (``progress``: a Reporter or
-    a line callback; default quiet)."""
+    a line callback; default quiet). ``end_tolerance``: bound q and qdot at the last node to the
+    initial state +- this fraction of their range (the authors' full horizon does, with 0.01)."""
     rep = as_reporter(progress)
     rep.line(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
-    ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles)
+    ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles, end_tolerance)
     compiled = f", compiled in {ocp.compile_time_s:.1f} s" if ocp.compile_time_s else ""
     rep.line(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")
     with rep.task(f"solving the {n_cycles}-cycle OCP with IPOPT"):
-        sol = ocp.solve()
+        sol = ocp.solve(x_end=ocp.initial_state() if end_tolerance is not None else None)
     rep.line(f"{sol.status}: {sol.iterations} iterations, {sol.wall_time_s:.2f} s, objective {sol.objective:.6g}")
     return ocp, sol
 
@@ -206,6 +207,7 @@ def max_repetitions(
     study: str = "",
     labels: dict[str, Any] | None = None,
     resume: bool = False,
+    end_tolerance: float | None = None,
 ) -> SearchResult:
     """Largest number of cycles for which the full-horizon OCP converges.
 
@@ -219,6 +221,8 @@ def max_repetitions(
             solution of that N (run :func:`step_run_name`) are written, and the best run as ``name``.
         name: run name of the best solution.
         resume: continue the search stored in ``out`` (same problem), re-solving nothing already done.
+        end_tolerance: bound q and qdot at the last node of every horizon to the initial state +-
+            this fraction of their range (as the authors' full horizon does), or None.
     """
     rep = as_reporter(progress)
     build = OcpBuilder(problem, transcription, solver, guess, rep)
@@ -237,10 +241,10 @@ def max_repetitions(
             row = done[n]
             result.tried.append(row)
             return bool(row["converged"])
-        ocp = build(n)
+        ocp = build(n, end_tolerance)
         prior = [k for k in solutions if k <= n]
         start = resample_guess(ocp, solutions[max(prior)]) if prior else None
-        sol = ocp.solve(guess=start)
+        sol = ocp.solve(guess=start, x_end=ocp.initial_state() if end_tolerance is not None else None)
         row = {"n_cycles": n, "converged": sol.success, "status": sol.status, "iterations": sol.iterations,
                "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s}
         result.tried.append(row)

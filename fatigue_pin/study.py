@@ -90,6 +90,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "advance": (_is_int, "an integer number of cycles >= 1", 1),
         "max_cycles": (_is_int, "an integer number of cycles >= 1", None),
         "end_tolerance": (_is_number, "a fraction of the joint ranges in [0, 1)", 0.01),
+        "cyclic_end": (_is_bool, "true or false", False),
         "guess": (_is_str, "'rest', 'physical' or 'ik'", "rest"),
         "failure_iterations": (_is_number, "a multiple of the median window iterations >= 1", 10.0),
         "min_iterations": (_is_int, "an integer >= 0", 200),
@@ -662,7 +663,8 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     name = name or study.run_name()
     text = study.to_toml()
     if h["kind"] == "full":
-        ocp, sol = solve_full(problem, h["cycles"], tr, sol_opts, guess=h["guess"], progress=say)
+        end = h["end_tolerance"] if h["cyclic_end"] else None
+        ocp, sol = solve_full(problem, h["cycles"], tr, sol_opts, guess=h["guess"], progress=say, end_tolerance=end)
         run = solution_to_run(ocp, sol, name, study=text, labels=study.labels)
         if out is not None:
             write_run(out, run)
@@ -674,4 +676,5 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
         runner = SlidingHorizon(problem, sliding, tr, sol_opts, guess=h["guess"], study=text, labels=study.labels, progress=say)
         return runner.run(out, name=name, resume=resume, progress=say)
     return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say, out=out,
-                           name=name, study=text, labels=study.labels, resume=resume)
+                           name=name, study=text, labels=study.labels, resume=resume,
+                           end_tolerance=h["end_tolerance"] if h["cyclic_end"] else None)
