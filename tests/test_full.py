@@ -24,7 +24,10 @@ class _FakeOcp:
     def __init__(self, n_cycles):
         self.n_cycles, self.build_time_s = n_cycles, 0.0
 
-    def solve(self, guess=None):
+    def initial_state(self):
+        return None
+
+    def solve(self, guess=None, x_end=None):
         _FakeOcp.guesses.append(guess is not None)
         sol = _FakeSolution(self.n_cycles, self.n_cycles <= _FakeOcp.limit)
         sol.x = sol.u = None
