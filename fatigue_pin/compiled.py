@@ -1,4 +1,4 @@
-"""Compiled CasADi functions, cached on disk: one library per model, one small driver per horizon.
+"""Compiled CasADi functions, cached on disk: one library per model, used by every horizon.
 
 Compiling the complete NLP of a horizon (objective, constraints, gradient, Jacobian and exact
 Hessian of the Lagrangian) costs about a minute for arm26, and the generated C differs with every
@@ -16,11 +16,10 @@ which do not depend on the horizon. This module compiles them once:
    two, in any number of directions, come from compiled code (forward directions are products of
    the compiled Jacobian with the seeds). The externals can be ``map``-ped and called inside MX
    expressions like the original functions.
-2. :func:`compile_nlp_driver` generates C for an ``nlpsol``'s NLP functions built from those
-   externals. CasADi's code generator calls an external by its symbol instead of emitting its
-   code, so the driver holds only the assembly around the interval functions (the maps, the
-   index shuffling, the products with seeds); it compiles in a few seconds and is linked against
-   the library. ``casadi.nlpsol(name, "ipopt", str(path), opts)`` loads it.
+2. The NLP of any horizon is assembled around those externals by CasADi's virtual machine
+   (:mod:`fatigue_pin.transcription`, library mode). A small compiled driver per horizon, linked
+   against the library, was measured and dropped: its C grows with the horizon (22 s of compile
+   at 1 cycle, 132 s at 32).
 
 Cache entries (``<cache>/<name>_<key>.so``) are written atomically (compiled in a temporary
 directory beside the cache entry, then ``os.replace``), builders of the same key serialise on
@@ -354,23 +353,19 @@ def _run_first(commands: Sequence[list[str]], what: str) -> list[str]:
     raise CompileError(f"compiling {what} failed ({' '.join(commands[-1])}):\n{proc.stderr[-4000:]}")
 
 
-def compile_shared(
-    sources: Sequence[Path], target: Path, options: BuildOptions, link: Sequence[Path] = ()
-) -> list[str]:
+def compile_shared(sources: Sequence[Path], target: Path, options: BuildOptions) -> list[str]:
     """Compile C ``sources`` into the shared library ``target``; return the flags that worked.
 
     One source is compiled and linked in one step; several are compiled to objects by
     ``options.resolved_jobs()`` compiler processes at once, then linked. ``-fopenmp`` is added
     when the code has OpenMP pragmas (and ``options.openmp``); if that or a ``=native`` flag is
-    rejected, the compile is retried without it. ``link``: shared libraries the code calls
-    into (linked by absolute path, so the loader finds them without a search path).
+    rejected, the compile is retried without it.
     """
     compiler = _compiler_path(options.compiler)
     openmp = options.openmp and any(b"#pragma omp" in src.read_bytes() for src in sources)
     attempts = _flag_attempts(options, openmp)
-    libs = [str(Path(lib).absolute()) for lib in link]
     if len(sources) == 1:
-        cmds = [[compiler, "-fPIC", "-shared", *flags, str(sources[0]), "-o", str(target), *libs, "-lm"] for flags in attempts]
+        cmds = [[compiler, "-fPIC", "-shared", *flags, str(sources[0]), "-o", str(target), "-lm"] for flags in attempts]
         return _run_first(cmds, sources[0].name)
     # find the flags that work on the smallest source, then compile all with them in parallel
     smallest = min(sources, key=lambda src: src.stat().st_size)
@@ -381,7 +376,7 @@ def compile_shared(
         list(pool.map(lambda src: _run_first([[compiler, "-fPIC", "-c", *flags, str(src), "-o", str(src.with_suffix(".o"))]], src.name),
                       sorted(rest, key=lambda src: -src.stat().st_size)))
     objects = [str(src.with_suffix(".o")) for src in sources]
-    _run_first([[compiler, "-shared", *flags, *objects, "-o", str(target), *libs, "-lm"]], target.name)
+    _run_first([[compiler, "-shared", *flags, *objects, "-o", str(target), "-lm"]], target.name)
     return flags
 
 
@@ -526,82 +521,3 @@ class FunctionLibrary:
     def functions(self) -> dict[str, ca.Function]:
         """Every function of the library (name -> external)."""
         return {name: self.function(name) for name in self.names}
-
-
-# -- the per-horizon NLP driver -----------------------------------------------------------------------
-
-
-def nlp_driver_key(source: bytes, libraries: Sequence[FunctionLibrary], options: BuildOptions) -> str:
-    """Cache key of an NLP driver: its generated C, the libraries it links (key and path), the
-    compiler, flags, CasADi version and CPU (with ``=native`` flags)."""
-    h = hashlib.sha256()
-    for part in (f"fatigue_pin.compiled/{FORMAT_VERSION}", f"casadi/{ca.__version__}", f"compiler/{options.compiler}",
-                 "flags/" + " ".join(options.flags), f"openmp/{options.openmp}"):
-        h.update(part.encode() + b"\0")
-    h.update(host_key(options.flags) + b"\0")
-    for lib in libraries:
-        h.update(f"{lib.key}:{lib.path}".encode() + b"\0")
-    h.update(source)
-    return h.hexdigest()[:20]
-
-
-def generate_nlp_source(solver: ca.Function, name: str, directory: Path) -> Path:
-    """Write C for ``solver``'s NLP functions (:data:`NLP_FUNCTIONS` and the oracle ``nlp``) to
-    ``directory/<name>.c`` (what ``generate_dependencies`` writes, without changing directory)."""
-    generator = ca.CodeGenerator(name, {"verbose": False})
-    generator.add(solver.oracle())
-    for fname in NLP_FUNCTIONS:
-        generator.add(solver.get_function(fname))
-    return Path(generator.generate(str(directory) + os.sep))
-
-
-@dataclass(frozen=True)
-class NlpDriver:
-    """A compiled NLP driver: pass ``str(path)`` to ``casadi.nlpsol(name, "ipopt", ...)``.
-
-    Attributes:
-        path: the verified shared library (linked against ``libraries``).
-        key: :func:`nlp_driver_key`.
-        generate_time_s: generating the C (s); compile_time_s: compiling it (0 when cached).
-    """
-
-    path: Path
-    key: str
-    generate_time_s: float
-    compile_time_s: float
-
-
-def compile_nlp_driver(
-    solver: ca.Function,
-    name: str,
-    libraries: Sequence[FunctionLibrary],
-    options: BuildOptions | None = None,
-    progress: Progress | None = None,
-) -> NlpDriver:
-    """Generate, compile and cache the NLP functions of ``solver`` (an ``nlpsol`` built from
-    an MX problem that calls functions of ``libraries``), linked against those libraries.
-
-    Every library must have been built with the same compiler and flags (they are loaded into one
-    process). Returns the driver; ``casadi.nlpsol(name, plugin, str(driver.path), opts)`` loads it.
-    """
-    options = options or BuildOptions()
-    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
-        raise ParameterError(f"driver name {name!r}: expected a C identifier (letters, digits, underscores)")
-    for lib in libraries:
-        if not verify_entry(lib.path):
-            raise CompileError(f"library {lib.path} is missing or fails its checksum; build it again")
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="fatigue_pin_nlp.") as tmp:
-        source = generate_nlp_source(solver, name, Path(tmp))
-        code = source.read_bytes()
-        t_gen = time.perf_counter() - t0
-        key = nlp_driver_key(code, libraries, options)
-        entry = options.resolved_cache_dir() / f"{name}_{key}.so"
-
-        def build(tmp_so: Path) -> None:
-            _announce(progress, f"the {name} NLP driver", len(code) // 4, 1, "once per horizon")
-            compile_shared([source], tmp_so, options, link=[lib.path for lib in libraries])
-
-        t1 = time.perf_counter()
-        built = cached_build(entry, build)
-    return NlpDriver(entry, key, t_gen, time.perf_counter() - t1 if built else 0.0)
