@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import shutil
-import subprocess
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -176,34 +174,17 @@ class NlpResult:
     wall_time_s: float
 
 
-def _compile_shared(source: Path, target: Path, options: SolverOptions, openmp: bool) -> None:
-    """Compile generated C into a shared library, atomically placed at ``target``.
+def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
+    """Compile generated C into a shared library, atomically placed at ``target``, with
+    :func:`fatigue_pin.compiled.compile_shared`: ``-fopenmp`` when the code has OpenMP pragmas
+    (intervals mapped with ``parallel="openmp"``), dropped if the compiler lacks OpenMP, and a
+    ``-march=native`` build retried with portable flags if it fails."""
+    from fatigue_pin.compiled import compile_shared
 
-    Code with OpenMP pragmas (``openmp``: intervals mapped with ``parallel="openmp"``) is compiled
-    with ``-fopenmp``; if the compiler lacks OpenMP it is compiled without (the pragmas are then
-    ignored and the intervals are evaluated serially). If a ``-march=native`` build fails, the
-    flags without it are tried.
-    """
-    if shutil.which(options.compiler) is None:
-        raise ParameterError(
-            f"SolverOptions.compiler = {options.compiler!r} is not on PATH; install a C compiler or set compile=False"
-        )
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
         tmp_so = Path(tmp) / target.name
-        portable = [f for f in options.compiler_flags if not _is_native(f)]
-        attempts = []  # most capable first: OpenMP and CPU tuning, then without each
-        for flags in dict.fromkeys((tuple(options.compiler_flags), tuple(portable))):
-            if openmp:
-                attempts.append([options.compiler, "-fopenmp", "-fPIC", "-shared", *flags])
-            attempts.append([options.compiler, "-fPIC", "-shared", *flags])
-        for cmd in attempts:
-            cmd = cmd + [str(source), "-o", str(tmp_so), "-lm"]
-            proc = subprocess.run(cmd, capture_output=True, text=True)
-            if proc.returncode == 0:
-                break
-        if proc.returncode != 0:
-            raise RuntimeError(f"compiling the NLP failed ({' '.join(cmd)}):\n{proc.stderr[-4000:]}")
+        compile_shared([source], tmp_so, options.build_options())
         os.replace(tmp_so, target)
 
 
@@ -220,13 +201,6 @@ def generate_nlp_source(solver: ca.Function, name: str, folder: Path) -> Path:
         gen.add(solver.get_function(fname))
     gen.generate(str(folder) + os.sep)
     return folder / f"{name}.c"
-
-
-def _is_native(flag: str) -> bool:
-    """Whether a compiler flag tunes the code to this CPU (``-march=native``, ``-mtune=native``)."""
-    from fatigue_pin.compiled import is_native_flag
-
-    return is_native_flag(flag)
 
 
 def _host_key(options: SolverOptions) -> bytes:
@@ -301,7 +275,7 @@ class NlpSolver:
             target = self.options.resolved_cache_dir() / f"{name}_{digest}.so"
             if not target.exists():
                 with self._progress.task(f"compiling {self._label} (once per machine)", expected_s=len(code) / 100_000):
-                    _compile_shared(source, target, self.options, openmp=b"#pragma omp" in code)
+                    _compile_shared(source, target, self.options)
                 self.compile_time_s = time.perf_counter() - t0
         self.compiled_path = target
         return str(target)
