@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from fatigue_pin.problem import Problem
+from fatigue_pin.problem import Problem, StateLayout
 from fatigue_pin.results import RunResult, list_runs, read_run, read_search, torque_limits_at_cycle_ends, write_run, write_search
 from fatigue_pin.solver import SolverOptions
 from fatigue_pin.transcription import IntervalFunctions, Ocp, OcpSolution, Transcription
@@ -232,7 +232,7 @@ def max_repetitions(
     result = SearchResult(max_cycles=0)
     table = _search_name(name)
     if resume and out is not None and Path(out).exists():
-        done, solutions = _restore_search(Path(out), table, name)
+        done, solutions = _restore_search(Path(out), table, name, problem.layout)
         if done:
             rep.line(f"resuming the search {name!r}: N = {sorted(done)} already done")
 
@@ -294,8 +294,9 @@ def max_repetitions(
     return result
 
 
-def _restore_search(path: Path, table: str, name: str) -> tuple[dict[int, dict[str, object]], dict[int, tuple[np.ndarray, np.ndarray]]]:
-    """Rows and converged solutions of a stored search."""
+def _restore_search(path: Path, table: str, name: str, layout: StateLayout
+                    ) -> tuple[dict[int, dict[str, object]], dict[int, tuple[np.ndarray, np.ndarray]]]:
+    """Rows and converged solutions (states in ``layout``, controls) of a stored search."""
     tables = read_search(path)
     if table not in tables:
         return {}, {}
@@ -313,18 +314,5 @@ def _restore_search(path: Path, table: str, name: str) -> tuple[dict[int, dict[s
                    "wall_time_s": float(row["wall_time_s"]), "build_time_s": 0.0}
         if converged:
             run = read_run(path, run_name)
-            solutions[n] = (_states_of(run), np.hstack([run.tau_plus, run.tau_minus]))
+            solutions[n] = (layout.assemble(run.q, run.qdot, run.fatigue), np.hstack([run.tau_plus, run.tau_minus]))
     return done, solutions
-
-
-def _states_of(run: RunResult) -> np.ndarray:
-    """States (nodes, nx) of a stored run, in the OCP's layout (q, qdot, each half's states)."""
-    cols = [run.q, run.qdot]
-    params = json.loads(run.attrs["fatigue_params"])
-    from fatigue_pin.fatigue import FATIGUE_MODELS
-
-    for h, half in enumerate(run.actuator_names):
-        kind = params[half].get("model", "xia")
-        for s in FATIGUE_MODELS[kind].state_names:
-            cols.append(run.fatigue[s][:, h : h + 1])
-    return np.hstack(cols)

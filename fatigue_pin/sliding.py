@@ -30,7 +30,7 @@ import json
 from typing import Any
 
 from fatigue_pin.errors import ParameterError
-from fatigue_pin.full import OcpBuilder, _states_of, run_attributes, to_run_result
+from fatigue_pin.full import OcpBuilder, run_attributes, to_run_result
 from fatigue_pin.problem import Problem
 from fatigue_pin.results import WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
 from fatigue_pin.solver import SolverOptions
@@ -201,7 +201,7 @@ class SlidingHorizon:
             key = next((k for k in mine if stored.get(k) != mine[k]), "settings")
             raise ResultFileError(f"cannot resume run {name!r} in {str(path)!r}: its {key} differ from this run's "
                                   f"({stored.get(key)!r} stored, {mine.get(key)!r} now)")
-        x = _states_of(run)
+        x = self.ocp.layout.assemble(run.q, run.qdot, run.fatigue)
         u = np.hstack([run.tau_plus, run.tau_minus])
         windows = [tuple(row) for row in run.windows.tolist()]
         return _State(x, u, run.cycle_costs, run.cycle_wall_time_s, windows, bool(run.attrs.get("finished", False)))
