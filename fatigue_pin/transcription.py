@@ -39,6 +39,7 @@ from fatigue_pin.errors import ParameterError
 from fatigue_pin.problem import Problem, StateLayout
 from fatigue_pin.progress import Progress
 from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions
+from fatigue_pin.task import joint_target_pairs
 
 #: Integrators of the shooting intervals.
 INTEGRATORS = ("rk4",)
@@ -311,7 +312,6 @@ class Ocp:
         self.functions = functions or IntervalFunctions(problem, self.transcription, fatigue_calls=library_mode)
         self.layout = self.functions.layout
         self.cost_terms = problem.cost_names
-        self._target_rows = None
         library_compile_s = 0.0
         if library_mode and self.functions.library is None:
             self._build_library(progress)
@@ -353,7 +353,6 @@ class Ocp:
             solver = ca.nlpsol("probe", "ipopt", nlp, {"print_time": False})
         finally:
             self.n_intervals = saved
-            self._target_rows = None
         functions = self.functions.library_functions()
         derivatives = requested_derivatives(solver, [fn.name() for fn in functions])
         name = re.sub(r"[^A-Za-z0-9_]", "_", f"{self.model.name}_intervals")
@@ -466,7 +465,7 @@ class Ocp:
             X_lb[j, :] = np.maximum(X_lb[j, :], rng.lower)
             X_ub[j, :] = np.minimum(X_ub[j, :], rng.upper)
         X_lb[:, 0] = X_ub[:, 0] = x_init
-        targets = self._targets()
+        targets = joint_target_pairs(self.task, self.model, N)
         for node, j, a, b in targets:
             X_lb[j, node], X_ub[j, node] = a, b
         tol = self.end_tolerance
@@ -478,13 +477,6 @@ class Ocp:
             for node, j, a, b in targets:  # task targets win over the end box
                 X_lb[j, node], X_ub[j, node] = a, b
         return X_lb, X_ub
-
-    def _targets(self) -> list[tuple[int, int, float, float]]:
-        from fatigue_pin.task import joint_target_pairs
-
-        if self._target_rows is None:
-            self._target_rows = joint_target_pairs(self.task, self.model, self.n_intervals)
-        return self._target_rows
 
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of the actuator halves, each of shape (nu, N)."""
