@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import contextlib
 import json
 import os
 import shutil
@@ -18,6 +19,7 @@ import subprocess
 import time
 import urllib.request
 from pathlib import Path
+from typing import AsyncIterator
 
 import numpy as np
 import pytest
@@ -112,7 +114,10 @@ def _marker_color(joint_half: str) -> str:
     return f"viewer.scene_tree.find(['meshcat','fatigue_pin','fatigue','{joint_half}','<object>']).object.material.color.toArray()"
 
 
-async def _drive(chromium: str, html: Path, out: Path) -> dict:
+@contextlib.asynccontextmanager
+async def open_replay(chromium: str, html: Path, out: Path, timeout_s: float = 20.0) -> AsyncIterator[_Page]:
+    """Headless Chromium (profile in ``out``) on the exported replay ``html``, once its animation
+    is loaded; the browser is stopped on exit."""
     from tornado.websocket import websocket_connect
 
     profile = out / "profile"
@@ -134,7 +139,21 @@ async def _drive(chromium: str, html: Path, out: Path) -> dict:
             await page.call(f"{domain}.enable")
         await page.call("Emulation.setDeviceMetricsOverride", width=800, height=600, deviceScaleFactor=1, mobile=False)
         await page.call("Page.navigate", url=html.as_uri())
-        await page.wait_for("typeof viewer !== 'undefined' && viewer.animator.duration > 0")
+        await page.wait_for("typeof viewer !== 'undefined' && viewer.animator.duration > 0", timeout_s=timeout_s)
+        yield page
+        await page.call("Runtime.evaluate", expression="0")  # collect late events
+        ws.close()
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+async def _drive(chromium: str, html: Path, out: Path) -> dict:
+    async with open_replay(chromium, html, out) as page:
         report = {
             "duration": await page.js("viewer.animator.duration"),
             "playing": await page.js("viewer.animator.playing"),
@@ -149,17 +168,8 @@ async def _drive(chromium: str, html: Path, out: Path) -> dict:
         report["last"] = await page.screenshot_at(end, out / "replay_end.png")
         report["color_last"] = await page.js(_marker_color("elbow_plus"))
         report["label_end"] = await page.js("new Promise(r => requestAnimationFrame(() => r(document.getElementById('fp-cycle').textContent)))")
-        await page.call("Runtime.evaluate", expression="0")  # collect late events
-        report["errors"] = page.errors
-        ws.close()
-        return report
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    report["errors"] = page.errors  # including the late events collected on closing
+    return report
 
 
 def _share(mask: np.ndarray) -> float:

@@ -10,12 +10,8 @@ lift's minus half fastest, 0 -> 0.9). Same Chromium requirements as tests/test_r
 from __future__ import annotations
 
 import asyncio
-import json
 import os
 import shutil
-import subprocess
-import time
-import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +21,7 @@ from fatigue_pin.ik import ik_reference
 from fatigue_pin.replay import build_animation, export_html
 from fatigue_pin.results import RunResult
 from fatigue_pin.study import Study
-from test_replay_browser import CHROMIUM_FLAGS, _chromium, _Page, _share
+from test_replay_browser import _chromium, _share, open_replay
 
 pytestmark = pytest.mark.browser
 
@@ -77,28 +73,7 @@ def _mesh_color(name: str) -> str:
 
 
 async def _drive(chromium: str, html: Path, out: Path) -> dict:
-    from tornado.websocket import websocket_connect
-
-    profile = out / "profile"
-    proc = subprocess.Popen([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", "about:blank"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        port_file = profile / "DevToolsActivePort"
-        deadline = time.monotonic() + 30
-        while not (port_file.is_file() and port_file.read_text().strip()):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                raise RuntimeError(f"Chromium did not start its DevTools server (exit code {proc.poll()})")
-            await asyncio.sleep(0.05)
-        port = int(port_file.read_text().split()[0])
-        targets = json.loads(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10).read())
-        page_ws = next(t["webSocketDebuggerUrl"] for t in targets if t["type"] == "page")
-        ws = await websocket_connect(page_ws, max_message_size=64 * 2**20)
-        page = _Page(ws)
-        for domain in ("Page", "Runtime", "Log"):
-            await page.call(f"{domain}.enable")
-        await page.call("Emulation.setDeviceMetricsOverride", width=800, height=600, deviceScaleFactor=1, mobile=False)
-        await page.call("Page.navigate", url=html.as_uri())
-        await page.wait_for("typeof viewer !== 'undefined' && viewer.animator.duration > 0", timeout_s=60)
+    async with open_replay(chromium, html, out, timeout_s=60) as page:
         await asyncio.sleep(1.0)  # the base's Collada mesh loads asynchronously
         report = {"duration": await page.js("viewer.animator.duration")}
         report["first"] = await page.screenshot_at(0.0, out / "robot_t0.png")
@@ -106,17 +81,8 @@ async def _drive(chromium: str, html: Path, out: Path) -> dict:
         report["middle"] = await page.screenshot_at(1.0, out / "robot_t1.png")
         report["last"] = await page.screenshot_at(report["duration"] - 1e-3, out / "robot_end.png")
         report["color_last"] = await page.js(_mesh_color(SEGMENT))
-        await page.call("Runtime.evaluate", expression="0")
-        report["errors"] = page.errors
-        ws.close()
-        return report
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    report["errors"] = page.errors  # including the late events collected on closing
+    return report
 
 
 def test_robot_study_replay_renders_with_fatigue_colours(tmp_path: Path) -> None:
