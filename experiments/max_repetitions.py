@@ -6,12 +6,14 @@ run; written after every N, so an interrupted study resumes where it stopped) an
 tried and the summary beside the paper's. Usage::
 
     python experiments/max_repetitions.py --out results/max_repetitions [--preset authors-code]
-        [--n-max 33] [--costs fatigue-torque torque fatigue] [--stabilization 10 0]
+        [--n-max N] [--costs fatigue-torque torque fatigue] [--stabilization 10 0]
         [--max-wall-time 900]
 
-The default preset is ``authors-code``: the paper's counts come from those values. ``--n-max 33``
-is the paper's range (it found 33 infeasible). ``--max-wall-time`` bounds one solve; a solve
-stopped by it counts as a failure and is reported with IPOPT's status.
+The default preset is ``authors-code``: the paper's counts come from those values. There is no
+cap by default: the search gallops (N = 1, 2, 4, ...) until a failure, then bisects; a failed
+warm start is solved again from rest before it counts. ``--max-wall-time`` bounds one solve; a
+solve stopped by it counts as a failure, reported with IPOPT's status and its kind
+(``fatigue_pin.solver.failure_kind``).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/max_repetitions"), help="output directory")
     parser.add_argument("--preset", default="authors-code", choices=list(PRESETS))
-    parser.add_argument("--n-max", type=int, default=33, help="largest N tried (default 33)")
+    parser.add_argument("--n-max", type=int, default=None, help="largest N tried (default: no cap)")
     parser.add_argument("--costs", nargs="+", default=list(COSTS), choices=list(COSTS))
     parser.add_argument("--stabilization", type=float, nargs="+", default=[10.0, 0.0])
     parser.add_argument("--max-wall-time", type=float, default=None, help="wall-time limit of one solve (s)")
@@ -45,12 +47,16 @@ def main(argv: list[str] | None = None) -> int:
             out = args.out / f"full_{cost}_S{S:g}.h5"
             result = run_study(study, out, progress=lambda s: print(s, flush=True), resume=True)
             solve = sum(float(r["wall_time_s"]) for r in result.tried)
-            summary.append((cost, S, result.max_cycles, solve, time.perf_counter() - t0))
-    print(f"\nmaximum repetitions, full horizon, preset {args.preset}, N <= {args.n_max}")
-    print(f"{'cost':<15} {'S':>4} {'ours':>5} {'paper':>6} {'solve s (all N)':>16} {'elapsed s':>10}")
-    for cost, S, reps, solve, elapsed in summary:
+            limit = result.max_cycles + 1
+            how = "; ".join(f"{r['guess']}: {r['status']} ({r['kind']}, {r['iterations']} it, {float(r['wall_time_s']):.0f} s)"
+                            for r in result.tried if r["n_cycles"] == limit) or "-"
+            summary.append((cost, S, result.max_cycles, how, solve, time.perf_counter() - t0))
+    cap = f"N <= {args.n_max}" if args.n_max else "no cap"
+    print(f"\nmaximum repetitions, full horizon, preset {args.preset}, {cap}")
+    print(f"{'cost':<15} {'S':>4} {'ours':>5} {'paper':>6} {'solve s (all N)':>16} {'elapsed s':>10}  how N+1 failed")
+    for cost, S, reps, how, solve, elapsed in summary:
         paper = PAPER_REPETITIONS[("full", S)][cost] if ("full", S) in PAPER_REPETITIONS else "-"
-        print(f"{cost:<15} {S:>4g} {reps:>5} {paper:>6} {solve:>16.1f} {elapsed:>10.1f}")
+        print(f"{cost:<15} {S:>4g} {reps:>5} {paper:>6} {solve:>16.1f} {elapsed:>10.1f}  {how}")
     return 0
 
 

@@ -64,6 +64,10 @@ def _curl_study(args: argparse.Namespace, horizon: str):
             raise UsageError(f"--{option.replace('_', '-')} {value}: expected an integer number of cycles >= 1")
     solver = {"linear_solver": args.linear_solver, "compile": not args.no_compile, "print_level": args.print_level,
               "max_iter": args.max_iter}
+    if getattr(args, "max_wall_time", None) is not None:
+        if not args.max_wall_time > 0:
+            raise UsageError(f"--max-wall-time {args.max_wall_time}: expected seconds > 0")
+        solver["max_wall_time"] = args.max_wall_time
     cycles = {"full": getattr(args, "cycles", None), "sliding": getattr(args, "window", None)}.get(horizon)
     max_cycles = args.n_max if horizon == "max-cycles" else getattr(args, "max_cycles", None)
     data = curl_study_dict(horizon, args.cost, args.preset, args.stabilization, cycles=cycles, max_cycles=max_cycles,
@@ -92,7 +96,8 @@ def _run(study, args: argparse.Namespace) -> int:
         print(f"{result.attrs['repetitions']} repetitions ({result.attrs['converged_windows']} windows converged, "
               f"{result.attrs['wall_time_s']:.1f} s solving); wrote {args.out} [{result.name}]")
         return 0
-    print(f"maximum repetitions: {result.max_cycles} (tried N = {[r['n_cycles'] for r in result.tried]}); wrote {args.out}")
+    failed = ", ".join(f"{n}: {k}" for n, k in result.failures.items()) or "none"
+    print(f"maximum repetitions: {result.max_cycles} (tried N = {[r['n_cycles'] for r in result.tried]}; failed: {failed}); wrote {args.out}")
     return 0
 
 
@@ -303,7 +308,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_reproduce)
 
     p = sub.add_parser("max-cycles", help="shortcut: largest number of cycles the curl's full-horizon OCP converges for")
-    p.add_argument("--n-max", type=int, default=33, help="largest N tried (default 33, the paper's range)")
+    p.add_argument("--n-max", type=int, default=None,
+                   help="largest N tried (default: no cap; gallop N = 1, 2, 4, ... until a failure, then bisect)")
+    p.add_argument("--max-wall-time", type=float, default=None, help="wall-time limit of one solve, s (default: none)")
     p.add_argument("--resume", action="store_true", help="continue the search stored in --out")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_max_cycles)

@@ -174,7 +174,11 @@ class SearchResult:
 
     Attributes:
         max_cycles: the largest N that converged (0 if none did).
-        tried: one row per N tried, in order: n_cycles, converged, status, iterations, wall_time_s.
+        tried: one row per solve, in order: n_cycles, converged, status, iterations, wall_time_s,
+            build_time_s, kind (:func:`fatigue_pin.solver.failure_kind`), guess (``warm N=<n>``
+            or the guess name) and constraint_violation. A failed warm start is followed by a
+            second row of the same N (the retry).
+        failures: the kind of every N that failed after its retry, by N.
         best: the converged solution with ``max_cycles`` cycles, and its OCP (None when resumed
             from a file and the best N was not solved again; read it from the file).
         run: the best run as stored in ``out`` (None without ``out``).
@@ -184,6 +188,11 @@ class SearchResult:
     tried: list[dict[str, object]] = field(default_factory=list)
     best: tuple[Ocp, OcpSolution] | None = None
     run: RunResult | None = None
+
+    @property
+    def failures(self) -> dict[int, str]:
+        final = {int(r["n_cycles"]): r for r in self.tried}  # the last solve of every N
+        return {n: str(r["kind"]) for n, r in sorted(final.items()) if not r["converged"]}
 
 
 def _search_name(name: str) -> str:
@@ -208,6 +217,7 @@ def max_repetitions(
     labels: dict[str, Any] | None = None,
     resume: bool = False,
     end_tolerance: float | None = None,
+    retry: bool = True,
 ) -> SearchResult:
     """Largest number of cycles for which the full-horizon OCP converges.
 
@@ -223,12 +233,18 @@ def max_repetitions(
         resume: continue the search stored in ``out`` (same problem), re-solving nothing already done.
         end_tolerance: bound q and qdot at the last node of every horizon to the initial state +-
             this fraction of their range (as the authors' full horizon does), or None.
+        retry: when a warm-started solve fails, solve the same N again from ``guess`` before
+            counting it as a failure (both solves are rows of the search table).
+
+    A failed N is classified by :func:`fatigue_pin.solver.failure_kind` (column ``kind``):
+    infeasibility (IPOPT's certificate, a failed restoration, a growing constraint violation) is
+    told from non-convergence (iteration or time limit) and from a broken step computation.
     """
     rep = as_reporter(progress)
     build = OcpBuilder(problem, transcription, solver, guess, rep)
     bar = rep.bar(None, "search steps", "solve")
     solutions: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    done: dict[int, dict[str, object]] = {}
+    done: dict[int, list[dict[str, object]]] = {}
     result = SearchResult(max_cycles=0)
     table = _search_name(name)
     if resume and out is not None and Path(out).exists():
@@ -236,21 +252,29 @@ def max_repetitions(
         if done:
             rep.line(f"resuming the search {name!r}: N = {sorted(done)} already done")
 
-    def attempt(n: int) -> bool:
-        if n in done:
-            row = done[n]
-            result.tried.append(row)
-            return bool(row["converged"])
-        ocp = build(n, end_tolerance)
-        prior = [k for k in solutions if k <= n]
-        start = resample_guess(ocp, solutions[max(prior)]) if prior else None
+    def solve(ocp: Any, n: int, start: tuple[np.ndarray, np.ndarray] | None, label: str) -> Any:
         sol = ocp.solve(guess=start, x_end=ocp.initial_state() if end_tolerance is not None else None)
         row = {"n_cycles": n, "converged": sol.success, "status": sol.status, "iterations": sol.iterations,
-               "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s}
+               "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s, "kind": sol.kind, "guess": label,
+               "constraint_violation": sol.nlp.constraint_violation}
         result.tried.append(row)
-        rep.line(f"N = {n:3d}: {'converged' if sol.success else 'failed   '} ({sol.status}, {sol.iterations} iterations, "
-                 f"{sol.wall_time_s:.1f} s solve, {ocp.build_time_s:.1f} s build)")
-        bar.update(1, N=n, status="converged" if sol.success else "failed", best=max(solutions) if solutions else 0)
+        rep.line(f"N = {n:3d}: {'converged' if sol.success else 'failed   '} ({sol.status}, {sol.kind}, from {label}, "
+                 f"{sol.iterations} iterations, {sol.wall_time_s:.1f} s solve, {ocp.build_time_s:.1f} s build)")
+        return sol
+
+    def attempt(n: int) -> bool:
+        if n in done:
+            result.tried.extend(done[n])
+            return bool(done[n][-1]["converged"])
+        ocp = build(n, end_tolerance)
+        prior = [k for k in solutions if k <= n]
+        if prior:
+            sol = solve(ocp, n, resample_guess(ocp, solutions[max(prior)]), f"warm N={max(prior)}")
+            if not sol.success and retry:  # another start before calling it a failure
+                sol = solve(ocp, n, None, guess)
+        else:
+            sol = solve(ocp, n, None, guess)
+        bar.update(1, N=n, status="converged" if sol.success else sol.kind, best=max(solutions) if solutions else 0)
         if sol.success:
             solutions[n] = (sol.x, sol.u)
             if n >= result.max_cycles:
@@ -295,24 +319,36 @@ def max_repetitions(
 
 
 def _restore_search(path: Path, table: str, name: str, layout: StateLayout
-                    ) -> tuple[dict[int, dict[str, object]], dict[int, tuple[np.ndarray, np.ndarray]]]:
-    """Rows and converged solutions (states in ``layout``, controls) of a stored search."""
+                    ) -> tuple[dict[int, list[dict[str, object]]], dict[int, tuple[np.ndarray, np.ndarray]]]:
+    """Rows (the solves of every N, in order) and converged solutions (states in ``layout``,
+    controls) of a stored search."""
     tables = read_search(path)
     if table not in tables:
         return {}, {}
-    done: dict[int, dict[str, object]] = {}
+    done: dict[int, list[dict[str, object]]] = {}
     solutions: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     runs = set(list_runs(path))
-    for row in tables[table]:
+    rows = tables[table]
+    names = rows.dtype.names or ()
+
+    def text(row: np.void, key: str) -> str:
+        if key not in names:
+            return ""
+        value = row[key]
+        return value.decode() if isinstance(value, bytes) else str(value)
+
+    for row in rows:
         n = int(row["n_cycles"])
-        status = row["status"].decode() if isinstance(row["status"], bytes) else str(row["status"])
         converged = bool(row["converged"])
-        run_name = step_run_name(name, n)
-        if converged and run_name not in runs:
+        if converged and step_run_name(name, n) not in runs:
             continue  # the table was written but the run was not: solve it again
-        done[n] = {"n_cycles": n, "converged": converged, "status": status, "iterations": int(row["iterations"]),
-                   "wall_time_s": float(row["wall_time_s"]), "build_time_s": 0.0}
-        if converged:
-            run = read_run(path, run_name)
+        done.setdefault(n, []).append({
+            "n_cycles": n, "converged": converged, "status": text(row, "status"), "iterations": int(row["iterations"]),
+            "wall_time_s": float(row["wall_time_s"]), "build_time_s": 0.0, "kind": text(row, "kind"),
+            "guess": text(row, "guess"),
+            "constraint_violation": float(row["constraint_violation"]) if "constraint_violation" in names else float("nan")})
+    for n, attempts in done.items():
+        if attempts[-1]["converged"]:
+            run = read_run(path, step_run_name(name, n))
             solutions[n] = (layout.assemble(run.q, run.qdot, run.fatigue), np.hstack([run.tau_plus, run.tau_minus]))
     return done, solutions

@@ -63,7 +63,8 @@ WINDOW_DTYPE = np.dtype([
     ("iterations", "i4"), ("wall_time_s", "f8"), ("objective", "f8"),
 ])
 
-SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40"), ("iterations", "i4"), ("wall_time_s", "f8")])
+SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40"), ("iterations", "i4"), ("wall_time_s", "f8"),
+                         ("kind", "S24"), ("guess", "S24"), ("constraint_violation", "f8")])
 
 
 class ResultFileError(FatiguePinError, ValueError):
@@ -426,10 +427,14 @@ def write_run(path: str | Path, run: RunResult) -> Path:
 
 
 def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any] | None = None) -> None:
-    """Write the table of a max-cycles search as ``/search/<name>`` (atomic)."""
+    """Write the table of a max-cycles search as ``/search/<name>`` (atomic), one row per solve:
+    n_cycles, converged, IPOPT status, iterations, wall_time_s, kind (how it ended,
+    :func:`fatigue_pin.solver.failure_kind`), guess (what started it: ``warm N=<n>`` or the guess
+    name) and constraint_violation (IPOPT's inf_pr at the last iterate)."""
 
-    table = np.array([(r["n_cycles"], r["converged"], r["status"].encode()[:40], r["iterations"], r["wall_time_s"]) for r in rows],
-                     dtype=SEARCH_DTYPE)
+    table = np.array([(r["n_cycles"], r["converged"], r["status"].encode()[:40], r["iterations"], r["wall_time_s"],
+                       str(r.get("kind", "")).encode()[:24], str(r.get("guess", "")).encode()[:24],
+                       float(r.get("constraint_violation", np.nan))) for r in rows], dtype=SEARCH_DTYPE)
 
     def fill(h5: h5py.File) -> None:
         grp = h5.require_group("search")

@@ -23,7 +23,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
@@ -35,6 +35,43 @@ from fatigue_pin.progress import Progress, as_reporter
 COMPILE_MODES = ("library", "nlp")
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
+
+#: IPOPT statuses that certify (locally) that the constraints cannot be met.
+INFEASIBLE_STATUSES = ("Infeasible_Problem_Detected", "Restoration_Failed")
+#: IPOPT statuses of a solve stopped by a limit before it converged or failed.
+LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_WallTime_Exceeded", "Maximum_CpuTime_Exceeded")
+
+
+def failure_kind(status: str, constraint_violation: Sequence[float], tol: float) -> str:
+    """Why a solve ended, from IPOPT's status and its primal infeasibility per iteration.
+
+    Returns one of:
+        ``converged``;
+        ``infeasible``: IPOPT's infeasibility certificate (``Infeasible_Problem_Detected``) or a
+            restoration phase that could not reduce the constraint violation (``Restoration_Failed``);
+        ``infeasible-growing``: stopped by a limit with the constraint violation above ``tol`` and
+            larger at the end than at its lowest point by 10x (the iterates move away from
+            feasibility);
+        ``not-converged``: stopped by the iteration or time limit otherwise (feasible or
+            approaching it, so more iterations or another start might converge);
+        ``numerical``: any other status (``Error_In_Step_Computation``,
+            ``Search_Direction_Becomes_Too_Small``, ...): the step computation broke down.
+
+    Args:
+        status: IPOPT's ``return_status``.
+        constraint_violation: inf_pr of every iteration (IPOPT's scaled primal infeasibility).
+        tol: the acceptable constraint violation (``constr_viol_tol``).
+    """
+    if status in CONVERGED_STATUSES:
+        return "converged"
+    if status in INFEASIBLE_STATUSES:
+        return "infeasible"
+    if status in LIMIT_STATUSES:
+        viol = np.asarray(constraint_violation, dtype=float)
+        if viol.size and viol[-1] > tol and viol[-1] > 10 * np.min(viol):
+            return "infeasible-growing"
+        return "not-converged"
+    return "numerical"
 
 
 @dataclass(frozen=True)
@@ -162,6 +199,8 @@ class NlpResult:
         success: whether ``status`` counts as converged.
         iterations: IPOPT iterations.
         wall_time_s: wall time of the solve call (s).
+        constraint_violation: IPOPT's primal infeasibility (inf_pr) at the last iterate.
+        kind: :func:`failure_kind` of the solve (``converged``, ``infeasible``, ...).
     """
 
     x: np.ndarray
@@ -172,6 +211,8 @@ class NlpResult:
     success: bool
     iterations: int
     wall_time_s: float
+    constraint_violation: float = float("nan")
+    kind: str = ""
 
 
 def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
@@ -313,6 +354,7 @@ class NlpSolver:
         wall = time.perf_counter() - t0
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
+        inf_pr = list(stats.get("iterations", {}).get("inf_pr", []))
         return NlpResult(
             x=np.asarray(sol["x"], dtype=float).reshape(-1),
             lam_x=np.asarray(sol["lam_x"], dtype=float).reshape(-1),
@@ -322,4 +364,6 @@ class NlpSolver:
             success=status in CONVERGED_STATUSES,
             iterations=int(stats.get("iter_count", -1)),
             wall_time_s=wall,
+            constraint_violation=float(inf_pr[-1]) if inf_pr else float("nan"),
+            kind=failure_kind(status, inf_pr, self.options.constr_viol_tol),
         )

@@ -237,6 +237,12 @@ class OcpSolution:
     cost_terms: tuple[str, ...] = ()
 
     @property
+    def kind(self) -> str:
+        """How the solve ended (:func:`fatigue_pin.solver.failure_kind`): ``converged``,
+        ``infeasible``, ``infeasible-growing``, ``not-converged`` or ``numerical``."""
+        return self.nlp.kind
+
+    @property
     def q(self) -> np.ndarray:
         return self.x[:, self.layout.q]
 

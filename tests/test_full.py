@@ -12,7 +12,9 @@ from fatigue_pin.results import read_run, read_search
 class _FakeSolution:
     def __init__(self, n: int, ok: bool):
         self.success, self.status = ok, "Solve_Succeeded" if ok else "Infeasible_Problem_Detected"
+        self.kind = "converged" if ok else "infeasible"
         self.iterations, self.wall_time_s = 10 * n, 0.1 * n
+        self.nlp = type("Nlp", (), {"constraint_violation": 0.0 if ok else 1.0})()
 
 
 class _FakeOcp:
@@ -48,8 +50,18 @@ def test_search_gallops_then_bisects(monkeypatch):
     _FakeOcp.guesses = []
     result = max_repetitions(None, n_max=64)
     assert result.max_cycles == 5
-    assert [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 6, 5]
-    assert _FakeOcp.guesses == [False, True, True, True, True, True]  # warm-started after the first
+    # a failed warm start is solved again from the default guess before it counts as a failure
+    assert [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 8, 6, 6, 5]
+    assert _FakeOcp.guesses == [False, True, True, True, False, True, False, True]
+    assert [r["guess"] for r in result.tried][:5] == ["rest", "warm N=1", "warm N=2", "warm N=4", "rest"]
+    assert result.failures == {8: "infeasible", 6: "infeasible"}
+
+
+def test_search_without_retry_counts_the_first_failure(monkeypatch):
+    monkeypatch.setattr(full, "OcpBuilder", _FakeBuilder)
+    monkeypatch.setattr(full, "resample_guess", lambda ocp, sol: "guess")
+    result = max_repetitions(None, n_max=64, retry=False)
+    assert result.max_cycles == 5 and [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 6, 5]
 
 
 def test_search_without_a_cap_gallops_until_a_failure(monkeypatch):
@@ -60,7 +72,8 @@ def test_search_without_a_cap_gallops_until_a_failure(monkeypatch):
         result = max_repetitions(None, n_max=None)
     finally:
         _FakeOcp.limit = 5
-    assert result.max_cycles == 40 and [r["n_cycles"] for r in result.tried] == [1, 2, 4, 8, 16, 32, 64, 48, 40, 44, 42, 41]
+    final = list(dict.fromkeys(r["n_cycles"] for r in result.tried))  # every N once, in order
+    assert result.max_cycles == 40 and final == [1, 2, 4, 8, 16, 32, 64, 48, 40, 44, 42, 41]
 
 
 def test_search_stops_at_n_max(monkeypatch):
@@ -143,3 +156,31 @@ def test_full_horizon_with_a_cyclic_end_box(arm26):
     assert np.all(np.abs(run.qdot[-1] - run.qdot[0]) <= 0.01 * span_v + 1e-6)
     free = run_study(small_curl("full", cycles=2))
     assert np.abs(free.q[-1, 0] - free.q[0, 0]) > np.abs(run.q[-1, 0] - run.q[0, 0])  # the box binds the shoulder
+
+
+def test_failure_kinds_tell_infeasibility_from_limits():
+    from fatigue_pin.solver import failure_kind
+
+    assert failure_kind("Solve_Succeeded", [1.0, 1e-8], 1e-4) == "converged"
+    assert failure_kind("Infeasible_Problem_Detected", [1.0], 1e-4) == "infeasible"
+    assert failure_kind("Restoration_Failed", [1.0], 1e-4) == "infeasible"
+    # stopped by a limit while the violation grew from its lowest point: moving away from feasibility
+    assert failure_kind("Maximum_Iterations_Exceeded", [1.0, 1e-3, 0.5], 1e-4) == "infeasible-growing"
+    # stopped by a limit while (nearly) feasible, or still decreasing: just not converged
+    assert failure_kind("Maximum_Iterations_Exceeded", [1.0, 1e-3, 1e-6], 1e-4) == "not-converged"
+    assert failure_kind("Maximum_WallTime_Exceeded", [1.0, 0.5, 0.4], 1e-4) == "not-converged"
+    assert failure_kind("Error_In_Step_Computation", [1e-9], 1e-4) == "numerical"
+
+
+def test_a_real_failure_is_classified_and_stored(small_study, small_problem, tmp_path):
+    """An iteration limit of 3 cannot converge: the solve is a failure of kind not-converged (or
+    infeasible-growing), stored with its guess and constraint violation in the search table."""
+    import dataclasses
+
+    solver = dataclasses.replace(small_study.solver(), max_iter=3)
+    out = tmp_path / "s.h5"
+    result = max_repetitions(small_problem, small_study.transcription(), solver, n_max=1, out=out, name="s")
+    assert result.max_cycles == 0 and result.failures[1] in ("not-converged", "infeasible-growing")
+    table = read_search(out)["s"]
+    assert table["kind"][0].decode() == result.failures[1] and table["guess"][0].decode() == "rest"
+    assert table["constraint_violation"][0] > 0
