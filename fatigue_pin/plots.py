@@ -6,6 +6,9 @@ Per OCP run (``<prefix>`` is the run name with '/' replaced by '_'):
 * ``<prefix>_joint_angles``: each joint's angle over the cycle, one line per cycle;
 * ``<prefix>_fatigue_states``: stacked ma, mr, mf and the target load TL of every actuator half;
 * ``<prefix>_torque_limits``: available torque (1 - mf) * tau_limit of every half at cycle ends;
+* ``<prefix>_capacity``: (:func:`plot_capacity`, not in :func:`plot_run`) each joint's flexion
+  and extension capacity at cycle ends against the peak torque the cycle used and, if given,
+  the torque that holds the posture;
 * ``<prefix>_cycle_costs``: the weighted cost terms of every cycle (log scale);
 * ``<prefix>_solve_time``: solve time per cycle (sliding horizon: per window).
 
@@ -246,6 +249,45 @@ def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
     for plot in (plot_joint_angles, plot_fatigue_states, plot_torque_limits, plot_cycle_costs, plot_solve_time):
         paths += plot(run, out_dir)
     return paths
+
+
+def peak_torques(run: RunResult) -> np.ndarray:
+    """Largest |tau| of every half within each cycle (N m, >= 0), (cycles, halves)."""
+    tau = np.abs(target_loads(run) * tau_limits(run))
+    n = run.n_cycles
+    per = tau.shape[0] // max(n, 1)
+    return np.array([tau[c * per:(c + 1) * per].max(axis=0) for c in range(n)]).reshape(n, -1)
+
+
+def plot_capacity(run: RunResult, out_dir: Path, holding: dict[str, float] | None = None,
+                  stem: str = "capacity") -> list[Path]:
+    """Why a run cannot do one more cycle: for every half, its capacity |(1 - mf) tau_limit| at
+    the end of each cycle (N m) against the largest |torque| the cycle used, and a horizontal line
+    at ``holding[joint]`` (N m, e.g. the gravity torque at the cycle's start posture), if given.
+    One panel per half that does any work."""
+    lim = tau_limits(run)
+    peak = peak_torques(run)
+    used = [h for h in range(len(run.actuator_names)) if peak[:, h].max() > 1e-3 * abs(lim[h])]
+    fig = _figure(figsize=(4.2 * max(len(used), 1), 4))
+    axes = np.atleast_1d(fig.subplots(1, max(len(used), 1)))
+    cycles = np.arange(1, run.n_cycles + 1)
+    for ax, h in zip(axes, used):
+        name = run.actuator_names[h]
+        cap = np.abs(run.torque_limits[:, h])
+        ax.plot(cycles, cap, "o-", ms=3, color="tab:blue", label="capacity at cycle end")
+        ax.plot(cycles, peak[:, h], "s-", ms=3, color="tab:red", label="peak |torque| in the cycle")
+        joint = name.rpartition("_")[0]
+        if holding and joint in holding:
+            ax.axhline(abs(holding[joint]), color="k", ls="--", lw=1, label=f"holding torque {abs(holding[joint]):.2f} N m")
+        ax.set_title(f"{name}: {cap[-1]:.3g} N m left, peak {peak[-1, h]:.3g}", fontsize=9)
+        ax.set_xlabel("cycle")
+        ax.set_ylabel("torque (N m)")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_{stem}")
 
 
 # -- per-file figures ----------------------------------------------------------------------------

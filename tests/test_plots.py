@@ -39,6 +39,17 @@ def test_each_run_figure(plot, horizon: str, tmp_path: Path) -> None:
     assert all(p.name.startswith(f"{horizon}_fatigue_torque_") for p in paths)
 
 
+def test_capacity_figure_and_peak_torques(tmp_path: Path) -> None:
+    run = make_run(name="full/fatigue_torque", n_cycles=3)
+    peak = plots.peak_torques(run)
+    per = run.tau_plus.shape[0] // 3
+    assert peak.shape == (3, 4)
+    np.testing.assert_allclose(peak[1, 0], np.abs(run.tau_plus[per:2 * per, 0]).max())
+    np.testing.assert_allclose(peak[2, 3], np.abs(run.tau_minus[2 * per:, 1]).max())
+    paths = plots.plot_capacity(run, tmp_path / "fig", holding={"elbow": 4.0})
+    _check(paths, {"full_fatigue_torque_capacity"})
+
+
 def test_target_loads_and_limits() -> None:
     run = make_run()
     tl = plots.target_loads(run)

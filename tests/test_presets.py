@@ -6,6 +6,7 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fatigue_pin.errors import ParameterError
@@ -99,3 +100,26 @@ def test_bad_json_files(tmp_path, content, message):
 def test_missing_json_file(tmp_path):
     with pytest.raises(PresetFileError, match="does not exist"):
         preset(str(tmp_path / "nope.json"))
+
+
+def test_the_physiological_curl_study_uses_frey_law_rates_per_joint():
+    """studies/curl_physiological.toml: the elbow halves carry Frey-Law 2012's elbow rates, the
+    shoulder halves the shoulder's, all with S = 10; the dumbbell weighs 10 kg; cycles last 2 s;
+    and a short full horizon of it (10 intervals per cycle) converges."""
+    from pathlib import Path
+
+    from fatigue_pin.full import solve_full
+    from fatigue_pin.presets import FREY_LAW_2012_JOINTS
+    from fatigue_pin.study import Study
+
+    study = Study.from_file(Path(__file__).resolve().parents[1] / "studies" / "curl_physiological.toml")
+    problem = study.problem()
+    for half in problem.actuators._halves:
+        assert (half.params.F, half.params.R) == FREY_LAW_2012_JOINTS[half.joint] and half.params.S == 10.0
+    light = Study.from_dict({**study.data, "model": {"urdf": "arm26"}}).problem().model
+    assert problem.model.body_masses()["elbow"] - light.body_masses()["elbow"] == pytest.approx(6.4)
+    assert problem.task.cycle_duration == 2.0
+    small = study.replace({"task.intervals_per_cycle": 10})
+    ocp, sol = solve_full(small.problem(), 2, small.transcription(), small.solver())
+    assert sol.success
+    assert np.nanmax(sol.fatigue("mf")) > 0  # the load tires the arm
