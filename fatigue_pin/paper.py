@@ -163,3 +163,25 @@ def curl_study(*args, **kwargs):
     from fatigue_pin.study import Study
 
     return Study.from_dict(curl_study_dict(*args, **kwargs))
+
+
+#: The authors' full-horizon settings that a study can state (docs/authors-code.md, D1, D9, D10,
+#: D11, D12): end box, rest guess per N, IPOPT's own mu_init and perturb_dec_fact, no scaling,
+#: Solved_To_Acceptable_Level accepted.
+AUTHORS_VARIANT = {
+    "horizon": {"cyclic_end": True, "end_tolerance": 0.01, "guess": "rest"},
+    "solver": {"mu_init": 0.1, "perturb_dec_fact": 1.0 / 3.0, "accept_acceptable": True},
+    "transcription": {"scaling": False},
+}
+
+
+def authors_variant_dict(cost: str = "fatigue-torque", S: float = 10.0, cycles: int = 33, **kwargs) -> dict:
+    """The full-horizon curl as the authors' code states it, as far as a study can
+    (``studies/curl_full_authors-variant.toml``): the ``authors-code`` values with
+    :data:`AUTHORS_VARIANT`. ``kwargs`` go to :func:`curl_study_dict`."""
+    data = curl_study_dict("full", cost, "authors-code", S, cycles=cycles, **kwargs)
+    for table, values in AUTHORS_VARIANT.items():
+        data[table] = {**data.get(table, {}), **values}
+    data["name"] = "authors-variant_{labels.cost}_S{fatigue.S}"
+    data["labels"]["preset"] = "authors-variant"
+    return data

@@ -112,6 +112,9 @@ class SolverOptions:
             compiles the whole NLP of each horizon (about a minute each on arm26) and is faster
             per iteration on long horizons (docs/ocp.md, "Compiled code").
         compile_jobs: compiler processes for a library (default: every core).
+        accept_acceptable: count IPOPT's ``Solved_To_Acceptable_Level`` as converged, as CasADi's
+            ``success`` flag does (and so the authors' code, docs/authors-code.md D11). Default
+            False: only ``Solve_Succeeded`` converges.
     """
 
     linear_solver: str = "mumps"
@@ -129,6 +132,7 @@ class SolverOptions:
     ipopt: dict[str, Any] = field(default_factory=dict)
     compile_mode: str = "library"
     compile_jobs: int | None = None
+    accept_acceptable: bool = False
 
     def __post_init__(self) -> None:
         if self.compile_mode not in COMPILE_MODES:
@@ -295,6 +299,16 @@ class NlpSolver:
         self._solvers: dict[int, ca.Function] = {int(options.max_iter): ca.nlpsol(name, "ipopt", self._source, opts)}
         self.build_time_s = time.perf_counter() - t0
 
+    def stats(self, max_iter: int | None = None) -> dict[str, Any]:
+        """CasADi's statistics of the last solve with this iteration limit: IPOPT's per-iteration
+        record (``stats()["iterations"]``: inf_pr, inf_du, mu, regularization_size, alpha_pr, ...)
+        and the timings (``t_wall_nlp_hess_l``, ...)."""
+        return self._solver(max_iter).stats()
+
+    def converged(self, status: str) -> bool:
+        """Whether IPOPT's ``status`` counts as converged under these options."""
+        return status in CONVERGED_STATUSES or (self.options.accept_acceptable and status == "Solved_To_Acceptable_Level")
+
     def _solver(self, max_iter: int | None = None) -> ca.Function:
         """The IPOPT instance with iteration limit ``max_iter`` (default: the options')."""
         key = int(self.options.max_iter if max_iter is None else max_iter)
@@ -361,9 +375,9 @@ class NlpSolver:
             lam_g=np.asarray(sol["lam_g"], dtype=float).reshape(-1),
             f=float(sol["f"]),
             status=status,
-            success=status in CONVERGED_STATUSES,
+            success=self.converged(status),
             iterations=int(stats.get("iter_count", -1)),
             wall_time_s=wall,
             constraint_violation=float(inf_pr[-1]) if inf_pr else float("nan"),
-            kind=failure_kind(status, inf_pr, self.options.constr_viol_tol),
+            kind="converged" if self.converged(status) else failure_kind(status, inf_pr, self.options.constr_viol_tol),
         )

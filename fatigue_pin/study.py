@@ -111,6 +111,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "ipopt": (_is_table, "a table of IPOPT options", {}),
         "compile_mode": (_is_str, "'library' (once per model) or 'nlp' (once per horizon)", "library"),
         "compile_jobs": (_is_int, "a number of compiler processes >= 1", None),
+        "accept_acceptable": (_is_bool, "true or false", False),
     },
 }
 TARGET_KEYS: dict[str, Check] = {

@@ -9,7 +9,7 @@ import pytest
 
 from conftest import small_curl
 from fatigue_pin.full import OcpBuilder
-from fatigue_pin.paper import COSTS, PRESETS, curl_study
+from fatigue_pin.paper import COSTS, PRESETS, authors_variant_dict, curl_study
 from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
 from fatigue_pin.study import Study
 
@@ -21,10 +21,19 @@ STUDIES = Path(__file__).resolve().parents[1] / "studies"
 @pytest.mark.parametrize("kind, horizon", [("sliding", "sliding"), ("full", "max-cycles")])
 def test_shipped_study_files_are_the_paper_configurations(preset, cost, kind, horizon):
     shipped = Study.from_file(STUDIES / f"curl_{kind}_{cost}_{preset}.toml")
-    expected = curl_study(horizon, cost, preset, 10.0, max_cycles=33 if horizon == "max-cycles" else None)
+    expected = curl_study(horizon, cost, preset, 10.0)  # the search has no cap
     assert shipped.data == expected.data
     assert shipped.run_name() == f"{kind}/{cost}_S10"
     assert shipped.replace({"fatigue.S": 0.0}).run_name() == f"{kind}/{cost}_S0"
+
+
+def test_shipped_authors_variant_is_the_paper_modules():
+    shipped = Study.from_file(STUDIES / "curl_full_authors-variant.toml")
+    assert shipped.data == Study.from_dict(authors_variant_dict()).data
+    solver, tr = shipped.solver(), shipped.transcription()
+    assert solver.accept_acceptable and solver.mu_init == 0.1 and abs(solver.perturb_dec_fact - 1 / 3) < 1e-15
+    assert not tr.scaling and shipped.horizon["cyclic_end"] and shipped.horizon["guess"] == "rest"
+    assert shipped.run_name() == "full/authors-variant_fatigue-torque_S10"
 
 
 # Reference values computed with fatigue_pin 0.1 (FatigueOcp, OcpSettings) on the same small

@@ -57,3 +57,16 @@ def test_compile_mode_is_validated_and_the_compiler_checked_only_when_compiling(
         SolverOptions(compile_mode="fast")
     options = SolverOptions(compiler="no-such-cc")  # exists without a compiler on PATH
     assert options.library_mode and options.build_options().compiler == "no-such-cc"
+
+
+def test_acceptable_level_counts_only_when_asked():
+    import types
+
+    from fatigue_pin.solver import NlpSolver, SolverOptions
+
+    strict = types.SimpleNamespace(options=SolverOptions())
+    lenient = types.SimpleNamespace(options=SolverOptions(accept_acceptable=True))
+    assert NlpSolver.converged(strict, "Solve_Succeeded") and NlpSolver.converged(lenient, "Solve_Succeeded")
+    assert not NlpSolver.converged(strict, "Solved_To_Acceptable_Level")
+    assert NlpSolver.converged(lenient, "Solved_To_Acceptable_Level")
+    assert not NlpSolver.converged(lenient, "Maximum_Iterations_Exceeded")
