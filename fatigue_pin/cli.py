@@ -226,7 +226,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         raise ResultFileError(f"{str(args.file)!r} holds no OCP run")
     failed = []
     for name in names:
-        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=args.rtol, atol=args.atol)
+        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=args.rtol, atol=args.atol,
+                            method=args.method)
         print(report.table(), end="\n\n" if len(names) > 1 else "\n", flush=True)
         if not report.passed:
             failed.append(name)
@@ -354,8 +355,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run", nargs="?", default=None, help="run name (needed when the file holds several)")
     p.add_argument("--all", action="store_true", help="verify every run of the file")
     p.add_argument("--single-shooting", action="store_true", help="also integrate the stored controls over the whole horizon")
-    p.add_argument("--rtol", type=float, default=DEFAULT_RTOL, help=f"solve_ivp (DOP853) rtol (default {DEFAULT_RTOL:g})")
-    p.add_argument("--atol", type=float, default=DEFAULT_ATOL, help=f"solve_ivp (DOP853) atol (default {DEFAULT_ATOL:g})")
+    p.add_argument("--rtol", type=float, default=DEFAULT_RTOL, help=f"solve_ivp rtol (default {DEFAULT_RTOL:g})")
+    p.add_argument("--atol", type=float, default=DEFAULT_ATOL, help=f"solve_ivp atol (default {DEFAULT_ATOL:g})")
+    p.add_argument("--method", default="DOP853", choices=["DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA"],
+                   help="solve_ivp method (default DOP853; the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
     p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
     p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")
     p.add_argument("--task-tol", type=float, default=tol.task, help=f"task targets, ranges, initial state (default {tol.task:g})")

@@ -559,23 +559,32 @@ def _run_names(h5: h5py.File) -> list[str]:
     return sorted(names)
 
 
-def list_runs(path: str | Path) -> list[str]:
-    """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted."""
+#: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
+#: ``sliding/torque_S0_failed_window``.
+FAILED_WINDOW_SUFFIX = "_failed_window"
+
+
+def list_runs(path: str | Path, failed_windows: bool = False) -> list[str]:
+    """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted; the
+    failed windows of sliding runs (``*_failed_window``) only with ``failed_windows=True``."""
     with _open(path) as h5:
         try:
-            return _run_names(h5)
+            names = _run_names(h5)
         except (OSError, RuntimeError) as exc:
             raise ResultFileError(f"{str(path)!r} is damaged: its groups cannot be listed ({exc})") from None
+    return names if failed_windows else [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
 
 
 def read_run(path: str | Path, name: str | None = None) -> RunResult:
-    """Read one run; ``name`` may be omitted when the file holds exactly one run."""
+    """Read one run; ``name`` may be omitted when the file holds exactly one run (a sliding
+    run's failed window, ``*_failed_window``, does not count)."""
     with _open(path) as h5:
         runs = _run_names(h5)
         if name is None:
-            if len(runs) != 1:
-                raise ResultFileError(f"{str(path)!r} holds {len(runs)} runs {runs}; choose one by name")
-            name = runs[0]
+            main = [r for r in runs if not r.endswith(FAILED_WINDOW_SUFFIX)]
+            if len(main) != 1:
+                raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name")
+            name = main[0]
         if name not in runs:
             shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]
             raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {shown}")

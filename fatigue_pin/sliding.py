@@ -32,7 +32,7 @@ from typing import Any
 from fatigue_pin.errors import ParameterError
 from fatigue_pin.full import OcpBuilder, run_attributes, to_run_result
 from fatigue_pin.problem import Problem
-from fatigue_pin.results import WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
+from fatigue_pin.results import FAILED_WINDOW_SUFFIX, WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
 from fatigue_pin.solver import SolverOptions
 from fatigue_pin.transcription import Transcription
 
@@ -96,6 +96,11 @@ def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
     if converged_windows <= 0:
         return 0
     return settings.advance * (converged_windows - 1) + settings.window
+
+
+def failed_window_name(name: str) -> str:
+    """Run name of the failed window of the sliding run ``name`` (its last IPOPT iterate)."""
+    return f"{name}{FAILED_WINDOW_SUFFIX}"
 
 
 class SlidingHorizon:
@@ -164,6 +169,15 @@ class SlidingHorizon:
         if s.failure_iterations is None or len(iters) < s.warmup:
             return None
         return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+
+    def _failed_window(self, sol: Any, x_init: np.ndarray, first_cycle: int, name: str) -> RunResult:
+        """The last iterate of a failed window as a run (times from the window's first cycle)."""
+        ocp = self.ocp
+        attrs = run_attributes(ocp, "sliding-failed-window", self.labels)
+        attrs.update(n_cycles=self.sliding.window, first_cycle=first_cycle, converged=False, status=sol.status,
+                     kind=sol.kind, iterations=sol.iterations, wall_time_s=sol.wall_time_s)
+        t = first_cycle * ocp.task.cycle_duration + np.arange(sol.x.shape[0]) * ocp.task.dt
+        return to_run_result(ocp, t, sol.x, sol.u, sol.cycle_costs, name, attrs, np.zeros(self.sliding.window), study=self.study)
 
     def _run_result(self, state: _State, name: str, build_time: float) -> RunResult:
         ocp = self.ocp
@@ -288,6 +302,8 @@ class SlidingHorizon:
                 state.windows.append(row)
             if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
                 state.done = True
+            if path is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
+                write_run(path, self._failed_window(sol, x_init, first_cycle, failed_window_name(name)))
             if path is not None:
                 write_run(path, self._run_result(state, name, build_time))
             bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")

@@ -148,6 +148,7 @@ class VerifyReport:
     tolerances: VerifyTolerances
     rtol: float
     atol: float
+    method: str = "DOP853"
     drift_q: float = float("nan")
     drift_qdot: float = float("nan")
     drift_fatigue: float = float("nan")
@@ -170,7 +171,7 @@ class VerifyReport:
     def table(self) -> str:
         """The report as text: one line per check, notes, and the verdict."""
         head = (f"verify {self.run} ({self.horizon}, {self.n_intervals} intervals of {self.dt:g} s"
-                f"{f', {self.substeps} RK4 substeps' if self.substeps else ''}; reference DOP853 rtol {self.rtol:g} atol {self.atol:g})")
+                f"{f', {self.substeps} RK4 substeps' if self.substeps else ''}; reference {self.method} rtol {self.rtol:g} atol {self.atol:g})")
         lines = [head, f"  {'check':<36}{'worst':>11}  {'unit':<7}{'tolerance':>10}  {'result':<12}where"]
         for c in self.checks:
             value = "-" if not c.checked else f"{c.value:.3e}"
@@ -348,10 +349,11 @@ class _Dynamics:
         return f
 
 
-def _integrate(f: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, dt: float, rtol: float, atol: float) -> np.ndarray:
+def _integrate(f: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, dt: float, rtol: float, atol: float,
+               method: str = "DOP853") -> np.ndarray:
     from scipy.integrate import solve_ivp
 
-    sol = solve_ivp(f, (0.0, dt), y0, method="DOP853", rtol=rtol, atol=atol)
+    sol = solve_ivp(f, (0.0, dt), y0, method=method, rtol=rtol, atol=atol)
     if not sol.success:
         raise ResultFileError(f"the reference integration failed: {sol.message}")
     return sol.y[:, -1]
@@ -443,7 +445,7 @@ def _task_checks(run: RunResult, pin_model, study_data: dict | None, n: int, N: 
 
 
 def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, single_shooting: bool = False,
-               rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> VerifyReport:
+               rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, method: str = "DOP853") -> VerifyReport:
     """Check a stored run independently of the package's transcription.
 
     Args:
@@ -451,7 +453,9 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         tolerances: the limits that decide ``passed`` (default :class:`VerifyTolerances`).
         single_shooting: also integrate the stored controls over the whole horizon from the
             stored initial state and report the drift of the states and of the invariant.
-        rtol, atol: tolerances of ``solve_ivp`` (DOP853).
+        rtol, atol, method: tolerances and method of ``solve_ivp`` (DOP853 by default; e.g.
+            ``RK45`` with rtol 1e-3, atol 1e-6 as the paper's single shooting). They apply to the
+            gap check too, so loose values loosen its reference.
 
     Returns:
         A :class:`VerifyReport`.
@@ -529,8 +533,8 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
     trunc = np.zeros_like(res)
     for k in range(N):
         fy, fm = dyn.rigid(tau[k]), dyn.fatigue(TL[k])
-        ey = _integrate(fy, Y[k], dt, rtol, atol)
-        em = _integrate(fm, M[k], dt, rtol, atol) if M.shape[1] else M[k]
+        ey = _integrate(fy, Y[k], dt, rtol, atol, method)
+        em = _integrate(fm, M[k], dt, rtol, atol, method) if M.shape[1] else M[k]
         gy[k], gm[k] = np.abs(ey - Y[k + 1]), np.abs(em - M[k + 1])
         if substeps:
             ry = _rk4(fy, Y[k], dt, substeps)
@@ -606,7 +610,7 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         gap_q=gap_q, gap_qdot=gap_v, gap_fatigue=gap_m,
         task=max((c.value for c in checks if c.name in ("task targets", "task ranges", "initial state")), default=float("nan")),
         coupling=coupling, bound=max(b_q, b_v, b_t, b_m), invariant=invariant, invariant_final=inv_final,
-        invariant_sum=invariant_sum, rhs_check=rhs_err, rk4_residual=rk4_res, rk4_truncation=rk4_trunc, tolerances=tol, rtol=rtol, atol=atol, notes=notes,
+        invariant_sum=invariant_sum, rhs_check=rhs_err, rk4_residual=rk4_res, rk4_truncation=rk4_trunc, tolerances=tol, rtol=rtol, atol=atol, method=method, notes=notes,
     )
 
     # -- single shooting: the stored controls over the whole horizon from the stored initial state
@@ -614,9 +618,9 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         ys, ms = np.zeros_like(Y), np.zeros_like(M)
         ys[0], ms[0] = Y[0], M[0]
         for k in range(N):
-            ys[k + 1] = _integrate(dyn.rigid(tau[k]), ys[k], dt, rtol, atol)
+            ys[k + 1] = _integrate(dyn.rigid(tau[k]), ys[k], dt, rtol, atol, method)
             if M.shape[1]:
-                ms[k + 1] = _integrate(dyn.fatigue(TL[k]), ms[k], dt, rtol, atol)
+                ms[k + 1] = _integrate(dyn.fatigue(TL[k]), ms[k], dt, rtol, atol, method)
         dq, at_dq = _worst(np.abs(ys[:, :nq] - Y[:, :nq]), joints, "node")
         dv, at_dv = _worst(np.abs(ys[:, nq:] - Y[:, nq:]), joints, "node")
         dm, at_dm = _worst(np.abs(ms - M), labels_m, "node")

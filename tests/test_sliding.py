@@ -135,3 +135,23 @@ def test_bad_sliding_settings():
         SlidingSettings(window=3, advance=4)
     with pytest.raises(ParameterError, match="max_cycles"):
         SlidingSettings(window=3, max_cycles=2)
+
+
+def test_a_failed_window_is_kept_for_inspection(small_problem, small_study, tmp_path):
+    """A window that fails (here: 3 iterations allowed) ends the run, and IPOPT's last iterate of
+    it is stored as the run ``<name>_failed_window``, which file listings and default reads skip."""
+    import dataclasses
+
+    from fatigue_pin.sliding import failed_window_name
+
+    solver = dataclasses.replace(small_study.solver(), max_iter=3)
+    out = tmp_path / "failed.h5"
+    run = SlidingHorizon(small_problem, SlidingSettings(window=3, advance=1, max_cycles=5), small_study.transcription(),
+                         solver).run(out, name="sliding/s")
+    assert run.n_cycles == 0 and not run.windows["converged"].any()
+    assert list_runs(out) == ["sliding/s"] and read_run(out).name == "sliding/s"
+    assert list_runs(out, failed_windows=True) == ["sliding/s", failed_window_name("sliding/s")]
+    failed = read_run(out, failed_window_name("sliding/s"))
+    assert failed.n_cycles == 3 and not failed.converged and failed.attrs["iterations"] == 3
+    assert failed.attrs["kind"] in ("not-converged", "infeasible-growing")
+    np.testing.assert_allclose(failed.q[0], small_problem.initial_state()[:2])  # the window starts at the fixed state
