@@ -123,6 +123,8 @@ class VerifyReport:
             numpy (the NLP's own gaps: small when it was solved); NaN when substeps are unknown.
         rk4_truncation: worst |RK4(x_k, u_k) - exact flow(x_k, u_k)|: how coarse the grid is.
         drift_q, drift_qdot, drift_fatigue, drift_invariant: single-shooting drift (NaN unless asked).
+        single_shooting_invariant, single_shooting_invariant_final: |1 - sum| of the
+            single-shooting states, worst over nodes and at the last node (NaN unless asked).
         notes: what was not checked and why.
         tolerances: the tolerances used; rtol, atol: of the reference integration.
     """
@@ -153,6 +155,8 @@ class VerifyReport:
     drift_qdot: float = float("nan")
     drift_fatigue: float = float("nan")
     drift_invariant: float = float("nan")
+    single_shooting_invariant: float = float("nan")
+    single_shooting_invariant_final: float = float("nan")
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -627,6 +631,8 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         inv_ss = np.abs(1.0 - np.column_stack([ms[:, dyn.offsets[i]:dyn.offsets[i + 1]].sum(axis=1) for i in range(len(halves))]))
         d_inv, at_di = _worst(np.abs(inv_ss - inv), [h.name for h in halves], "node")
         report.drift_q, report.drift_qdot, report.drift_fatigue, report.drift_invariant = dq, dv, dm, d_inv
+        if inv_ss.size:
+            report.single_shooting_invariant, report.single_shooting_invariant_final = float(inv_ss.max()), float(inv_ss[-1].max())
         report.checks += [
             VerifyCheck("single shooting: drift q", dq, "rad", None, at_dq),
             VerifyCheck("single shooting: drift qdot", dv, "rad/s", None, at_dv),
