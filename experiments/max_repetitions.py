@@ -22,7 +22,10 @@ import argparse
 import time
 from pathlib import Path
 
-from fatigue_pin.paper import COSTS, PAPER_REPETITIONS, PRESETS, curl_study
+import numpy as np
+
+from fatigue_pin.paper import COSTS, PAPER_REPETITIONS, PRESETS, Q_INIT, curl_study
+from fatigue_pin.plots import plot_capacity
 from fatigue_pin.study import run_study
 
 
@@ -50,6 +53,10 @@ def main(argv: list[str] | None = None) -> int:
             out = args.out / f"full_{cost}_S{S:g}.h5"
             result = run_study(study, out, progress=lambda s: print(s, flush=True), resume=True)
             solve = sum(float(r["wall_time_s"]) for r in result.tried)
+            if result.run is not None:  # why it cannot do one more: capacities against the holding torques
+                model = study.problem().model
+                holding = dict(zip(model.joint_names, np.abs(model.gravity_torque(np.asarray(Q_INIT)))))
+                plot_capacity(result.run, args.out / "figures", holding=holding, stem="limit_capacity")
             limit = result.max_cycles + 1
             how = "; ".join(f"{r['guess']}: {r['status']} ({r['kind']}, {r['iterations']} it, {float(r['wall_time_s']):.0f} s)"
                             for r in result.tried if r["n_cycles"] == limit) or "-"
