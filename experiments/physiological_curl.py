@@ -5,7 +5,8 @@ writes them into ``--out/physiological.h5`` (resumable: a killed run continues),
 and writes figures into ``--figures``:
 
 1. ``physiological``: ``studies/curl_physiological.toml``: Frey-Law et al. (2012) elbow and
-   shoulder rates, a 10 kg dumbbell, 2 s cycles;
+   shoulder rates, a 10 kg dumbbell, 2 s cycles, stopped after ``--max-cycles`` cycles (200);
+   ``physiological-12kg``: the same with 12 kg;
 2. ``paper-rates``: the same load and cycle with the paper's sped-up rates (F = 0.456,
    R = 0.0094, preset ``puchaud-2023/authors-code``) on both joints;
 3. ``physiological-3.6kg``: Frey-Law rates with the paper's 3.6 kg in 1 s cycles, stopped after
@@ -25,22 +26,25 @@ from pathlib import Path
 
 import numpy as np
 
+from fatigue_pin.results import list_runs, read_run
 from fatigue_pin.plots import peak_torques, plot_capacity, plot_fatigue_states, plot_joint_angles
 from fatigue_pin.study import Study, run_study
 
 STUDIES = Path(__file__).resolve().parent.parent / "studies"
 
 
-def studies(light_cycles: int) -> dict[str, Study]:
-    physio = Study.from_file(STUDIES / "curl_physiological.toml")
+def studies(light_cycles: int, max_cycles: int) -> dict[str, Study]:
+    physio = Study.from_file(STUDIES / "curl_physiological.toml").replace({"horizon.max_cycles": max_cycles})
     data = physio.data
     paper_rates = {k: v for k, v in data["fatigue"].items() if k != "joints"} | {"preset": "puchaud-2023/authors-code"}
     light = physio.replace({"task.cycle_duration": 1.0, "horizon.max_cycles": light_cycles})
+    heavier = physio.replace({"model.payload.mass": 8.4})
     light_data = dict(light.data)
     light_data["model"] = {k: v for k, v in light_data["model"].items() if k != "payload"}
     return {
         "physiological": physio,
         "paper-rates": Study.from_dict({**data, "fatigue": paper_rates, "name": "paper-rates_10kg_2s"}),
+        "physiological-12kg": Study.from_dict({**heavier.data, "name": "physiological_12kg_2s"}),
         "physiological-3.6kg": Study.from_dict({**light_data, "name": "physiological_3.6kg_1s"}),
         "paper": Study.from_file(STUDIES / "curl_sliding_fatigue-torque_authors-code.toml"),
     }
@@ -51,15 +55,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("results/physiological"), help="output folder")
     parser.add_argument("--figures", type=Path, default=None, help="figure folder (default: --out)")
     parser.add_argument("--light-cycles", type=int, default=100, help="cycles of the 3.6 kg run with physiological rates")
+    parser.add_argument("--max-cycles", type=int, default=200, help="cycles after which the physiological runs stop")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     figures = args.figures or args.out
     out = args.out / "physiological.h5"
     rows = []
-    for label, study in studies(args.light_cycles).items():
+    for label, study in studies(args.light_cycles, args.max_cycles).items():
         print(f"== {label}: {study.run_name()}", flush=True)
         t0 = time.perf_counter()
-        run = run_study(study, out, resume=True, progress=lambda s: print(s, flush=True))
+        name = study.run_name()
+        if out.exists() and name in list_runs(out) and read_run(out, name).attrs.get("finished"):
+            run = read_run(out, name)  # done before
+        else:
+            run = run_study(study, out, resume=True, progress=lambda s: print(s, flush=True))
         elapsed = time.perf_counter() - t0
         model = study.problem().model
         q0 = np.asarray(study.data["task"]["q_init"], dtype=float)

@@ -138,7 +138,7 @@ class SlidingHorizon:
             "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup],
             "transcription": repr(self.ocp.transcription),
             "x_init": self.problem.initial_state().tolist(),
-            "model": self.model.name,
+            "model": [self.model.name, repr(getattr(self.model, "payload", None))],
         }
         return json.dumps(data, sort_keys=True)
 

@@ -14,6 +14,7 @@ import pytest
 
 from fatigue_pin.results import list_runs, read_run
 from fatigue_pin.sliding import SlidingHorizon, SlidingSettings, repetitions
+from fatigue_pin.study import Study
 
 
 @pytest.fixture(scope="module")
@@ -155,3 +156,13 @@ def test_a_failed_window_is_kept_for_inspection(small_problem, small_study, tmp_
     assert failed.n_cycles == 3 and not failed.converged and failed.attrs["iterations"] == 3
     assert failed.attrs["kind"] in ("not-converged", "infeasible-growing")
     np.testing.assert_allclose(failed.q[0], small_problem.initial_state()[:2])  # the window starts at the fixed state
+
+
+def test_resume_refuses_another_payload(small_study):
+    """The fingerprint of a sliding run names the model's payload: a run with 6.4 kg more in the
+    hand cannot resume one without it."""
+    plain = small_study.replace({"horizon.kind": "sliding"})
+    heavy = Study.from_dict({**plain.data, "model": {**plain.data["model"], "payload": {"frame": "dumbbell", "mass": 6.4}}})
+    fingerprints = [SlidingHorizon(s.problem(), SlidingSettings(window=3), s.transcription(), s.solver()).fingerprint()
+                    for s in (plain, heavy)]
+    assert fingerprints[0] != fingerprints[1]
