@@ -54,6 +54,10 @@ class SlidingSettings:
             ``None`` keeps the solver's ``max_iter`` for every window (the paper's 3000).
         min_iterations: the iteration limit is never below this.
         warmup: windows solved with the solver's own ``max_iter`` before the limit applies.
+        guess_fatigue: how a window's guess gets its fatigue states: ``integrate`` (from the
+            window's initial state under the copied controls, so the guess has no fatigue gaps) or
+            ``copy`` (copied with the rest of the previous window's second cycle, as the authors'
+            code does: the guess jumps back at every cycle boundary).
     """
 
     window: int = 3
@@ -63,8 +67,11 @@ class SlidingSettings:
     failure_iterations: float | None = 10.0
     min_iterations: int = 200
     warmup: int = 3
+    guess_fatigue: str = "integrate"
 
     def __post_init__(self) -> None:
+        if self.guess_fatigue not in ("integrate", "copy"):
+            raise ParameterError(f"SlidingSettings.guess_fatigue = {self.guess_fatigue!r}: expected 'integrate' or 'copy'")
         if not (isinstance(self.window, int) and self.window >= 1):
             raise ParameterError(f"SlidingSettings.window = {self.window!r}: expected an integer number of cycles >= 1")
         if not (isinstance(self.advance, int) and 1 <= self.advance <= self.window):
@@ -135,7 +142,7 @@ class SlidingHorizon:
             "weights": dict(zip(self.ocp.cost_terms, self.problem.weights.tolist())),
             "fatigue": {h.name: [h.params.kind, *h.params.as_vector().tolist()] for h in self.problem.actuators.halves},
             "task": repr(self.problem.task),
-            "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup],
+            "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue],
             "transcription": repr(self.ocp.transcription),
             "x_init": self.problem.initial_state().tolist(),
             "model": [self.model.name, repr(getattr(self.model, "payload", None))],
@@ -157,6 +164,8 @@ class SlidingHorizon:
         x_cycle = x_prev[cyc * n : (cyc + 1) * n]
         u = np.tile(u_cycle, (K, 1))
         xs = np.vstack([np.tile(x_cycle, (K, 1)), x_prev[(cyc + 1) * n][None, :]])
+        if self.sliding.guess_fatigue == "copy":
+            return xs, u
         L = self.ocp.layout
         return self.ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u), u
 

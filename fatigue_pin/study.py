@@ -95,6 +95,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "failure_iterations": (_is_number, "a multiple of the median window iterations >= 1", 10.0),
         "min_iterations": (_is_int, "an integer >= 0", 200),
         "warmup": (_is_int, "an integer >= 0", 3),
+        "guess_fatigue": (_is_str, "'integrate' or 'copy'", "integrate"),
     },
     "solver": {
         "linear_solver": (_is_str, "an IPOPT linear solver name (e.g. 'mumps')", "mumps"),
@@ -205,6 +206,7 @@ RANGES: dict[str, Callable[[Any], bool]] = {
     "horizon.failure_iterations": lambda v: v >= 1,
     "horizon.min_iterations": lambda v: v >= 0,
     "horizon.warmup": lambda v: v >= 0,
+    "horizon.guess_fatigue": lambda v: v in ("integrate", "copy"),
     "solver.tol": lambda v: v > 0,
     "solver.constr_viol_tol": lambda v: v > 0,
     "solver.max_iter": lambda v: v >= 0,
@@ -673,7 +675,7 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     if h["kind"] == "sliding":
         sliding = SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=h["max_cycles"],
                                   end_tolerance=h["end_tolerance"], failure_iterations=h["failure_iterations"],
-                                  min_iterations=h["min_iterations"], warmup=h["warmup"])
+                                  min_iterations=h["min_iterations"], warmup=h["warmup"], guess_fatigue=h["guess_fatigue"])
         runner = SlidingHorizon(problem, sliding, tr, sol_opts, guess=h["guess"], study=text, labels=study.labels, progress=say)
         return runner.run(out, name=name, resume=resume, progress=say)
     return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say, out=out,

@@ -166,3 +166,24 @@ def test_resume_refuses_another_payload(small_study):
     fingerprints = [SlidingHorizon(s.problem(), SlidingSettings(window=3), s.transcription(), s.solver()).fingerprint()
                     for s in (plain, heavy)]
     assert fingerprints[0] != fingerprints[1]
+
+
+def test_copied_fatigue_guess_jumps_back_at_cycle_boundaries(small_problem, small_study):
+    """guess_fatigue='copy' (the authors' window guess) repeats the previous window's 2nd cycle
+    states verbatim, fatigue included; 'integrate' rolls the fatigue states forward instead."""
+    settings = {g: SlidingHorizon(small_problem, SlidingSettings(window=3, guess_fatigue=g), small_study.transcription(),
+                                  small_study.solver()) for g in ("integrate", "copy")}
+    ocp = settings["copy"].ocp
+    n = ocp.task.intervals_per_cycle
+    sol = ocp.solve()
+    x0 = sol.x[n]
+    guesses = {g: r.window_guess(x0, sol.x, sol.u) for g, r in settings.items()}
+    L = ocp.layout
+    fat = slice(L.nq + L.nv, L.nx)
+    copied, integrated = guesses["copy"][0], guesses["integrate"][0]
+    np.testing.assert_array_equal(copied[n, fat], copied[0, fat])  # back to the cycle's start
+    np.testing.assert_array_equal(copied[:n, fat], sol.x[n:2 * n, fat])
+    assert not np.allclose(integrated[n:, fat], copied[n:, fat])  # rolled forward, no jump back
+    np.testing.assert_array_equal(guesses["copy"][1], guesses["integrate"][1])
+    with pytest.raises(Exception, match="guess_fatigue"):
+        SlidingSettings(guess_fatigue="verbatim")
