@@ -1,7 +1,7 @@
 """Sliding-horizon speed: wall time and iterations per window for a run to exhaustion.
 
 Usage: python benchmarks/sliding_horizon.py [--cost fatigue-torque] [--stabilization 10]
-       [--max-cycles N] [--runs 1]
+       [--max-cycles N] [--runs 1] [--compile-mode library|nlp] [--derivative-blocks auto|on|off]
 
 Prints one line per window, then the median wall time and iterations of the normal windows,
 the terminal windows apart (the failing window, and windows that needed more than three times
@@ -13,6 +13,7 @@ of machine took ~5 s per fresh window, 15-25 s once fatigued, ~18 min for its fa
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import tempfile
 import time
@@ -31,11 +32,16 @@ def main() -> None:
     parser.add_argument("--preset", default="paper")
     parser.add_argument("--max-cycles", type=int, default=None)
     parser.add_argument("--runs", type=int, default=1, help="repeat the whole run; medians over runs")
+    parser.add_argument("--compile-mode", choices=("library", "nlp"), default="library")
+    parser.add_argument("--derivative-blocks", choices=("auto", "on", "off"), default="auto")
     args = parser.parse_args()
 
     study = curl_study("sliding", args.cost, args.preset, args.stabilization)
+    blocks = {"auto": None, "on": True, "off": False}[args.derivative_blocks]
+    solver = dataclasses.replace(study.solver(), compile_mode=args.compile_mode, derivative_blocks=blocks)
+    print(f"compile mode {args.compile_mode}, derivative blocks {args.derivative_blocks}")
     t0 = time.perf_counter()
-    runner = SlidingHorizon(study.problem(), SlidingSettings(max_cycles=args.max_cycles), study.transcription(), study.solver())
+    runner = SlidingHorizon(study.problem(), SlidingSettings(max_cycles=args.max_cycles), study.transcription(), solver)
     print(f"build {runner.ocp.build_time_s:.1f} s (compile {runner.ocp.compile_time_s:.1f} s) in {time.perf_counter() - t0:.1f} s")
     totals, normals, terminals, reps = [], [], [], []
     for r in range(args.runs):

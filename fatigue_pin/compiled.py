@@ -17,7 +17,10 @@ which do not depend on the horizon. This module compiles them once:
    the compiled Jacobian with the seeds). The externals can be ``map``-ped and called inside MX
    expressions like the original functions.
 2. The NLP of any horizon is assembled around those externals by CasADi's virtual machine
-   (:mod:`fatigue_pin.transcription`, library mode). A small compiled driver per horizon, linked
+   (:mod:`fatigue_pin.transcription`, library mode). Its constraint Jacobian and Lagrangian
+   Hessian come from per-interval derivative blocks (:mod:`fatigue_pin.blocks`), compiled in
+   the same library as ``plain`` functions (no derivative functions of their own), so the
+   library then needs of the interval functions only their gradients. A small compiled driver per horizon, linked
    against the library, was measured and dropped: its C grows with the horizon (22 s of compile
    at 1 cycle, 132 s at 32).
 
@@ -213,12 +216,14 @@ def library_key(
     functions: Mapping[str, ca.Function] | Sequence[ca.Function],
     options: BuildOptions,
     derivatives: Sequence[str] | Derivatives | None = None,
+    plain: Mapping[str, ca.Function] | Sequence[ca.Function] = (),
 ) -> str:
     """Cache key of a library (20 hex digits).
 
     Inputs, and only these: every function's name and serialised graph (so the model, the
     fatigue model, the integrator, the interval length and any constant baked in), the
-    derivative functions compiled beside each, the compiler command and flags, whether OpenMP
+    derivative functions compiled beside each, the ``plain`` functions (compiled without
+    derivatives, e.g. the derivative blocks of :mod:`fatigue_pin.blocks`), the compiler command and flags, whether OpenMP
     is used, the CasADi version (it generates the C), the CPU when a flag is ``=native``
     (:func:`host_key`) and :data:`FORMAT_VERSION`. The horizon is not an input: it only appears
     in the NLP assembled around the library.
@@ -237,6 +242,8 @@ def library_key(
     h.update(host_key(options.flags) + b"\0")
     for name, f in named.items():
         h.update(name.encode() + b"\0" + " ".join(spec[name]).encode() + b"\0" + f.serialize().encode() + b"\0")
+    for name, f in (_named(plain) if plain else {}).items():
+        h.update(b"plain\0" + name.encode() + b"\0" + f.serialize().encode() + b"\0")
     return h.hexdigest()[:20]
 
 
@@ -440,9 +447,10 @@ class FunctionLibrary:
         name: library name (a C identifier; the cache entry is ``<name>_<key>.so``).
         key: :func:`library_key` of the functions, derivatives and options.
         path: the verified shared library.
-        names: names of the functions given to :meth:`build`.
+        names: names of the functions given to :meth:`build` (``functions``, then ``plain``).
         derivatives: per function, the derivative prefixes compiled beside it (CasADi finds
-            ``<prefix><name>`` in the library when it differentiates the external).
+            ``<prefix><name>`` in the library when it differentiates the external); none for
+            the plain functions.
         compile_time_s: time spent generating and compiling (0 when found in the cache).
     """
 
@@ -463,6 +471,7 @@ class FunctionLibrary:
         derivatives: Sequence[str] | Derivatives | None = None,
         progress: Progress | None = None,
         description: str | None = None,
+        plain: Mapping[str, ca.Function] | Sequence[ca.Function] = (),
     ) -> FunctionLibrary:
         """Find the library of ``functions`` in the cache, or generate, compile and cache it.
 
@@ -477,32 +486,38 @@ class FunctionLibrary:
             progress: called with one line, e.g. "compiling the arm26 interval functions (about
                 60 s, once per machine)", before a compile (not when the cache has it).
             description: what the progress line calls the functions (default: ``name``).
+            plain: functions compiled as they are, without derivative functions (their names
+                must differ from those of ``functions``).
         """
         options = options or BuildOptions()
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
             raise ParameterError(f"library name {name!r}: expected a C identifier (letters, digits, underscores)")
         named = _named(functions)
         spec = _derivative_spec(named, derivatives)
-        key = library_key(named, options, spec)
+        extra = _named(plain) if plain else {}
+        if set(extra) & set(named):
+            raise ParameterError(f"functions {sorted(set(extra) & set(named))} are given both with and without derivatives")
+        key = library_key(named, options, spec, extra)
         entry = options.resolved_cache_dir() / f"{name}_{key}.so"
         t0 = time.perf_counter()
 
         def build(tmp_so: Path) -> None:
             sources = []
-            compiled_names = {prefix + fname for fname in named for prefix in ("", *spec[fname])}
-            for fname, f in named.items():  # one C file per function and derivative: parallel compile
-                for g in derivative_functions(f, spec[fname]):
-                    generator = ca.CodeGenerator(f"{name}_{g.name()}", {"verbose": False})
-                    # with its Jacobian sparsity (symbols jac_<g>_sparsity_*), so that the NLP keeps
-                    # its exact pattern, unless jac_<g> itself is compiled (it gives the pattern)
-                    generator.add(g, "jac_" + g.name() not in compiled_names)
-                    sources.append(Path(generator.generate(str(tmp_so.parent) + os.sep)))
+            compiled_names = {prefix + fname for fname in named for prefix in ("", *spec[fname])} | set(extra)
+            units = [g for fname, f in named.items() for g in derivative_functions(f, spec[fname])] + list(extra.values())
+            for g in units:  # one C file per function and derivative: parallel compile
+                generator = ca.CodeGenerator(f"{name}_{g.name()}", {"verbose": False})
+                # with its Jacobian sparsity (symbols jac_<g>_sparsity_*), so that the NLP keeps
+                # its exact pattern, unless jac_<g> itself is compiled (it gives the pattern)
+                generator.add(g, "jac_" + g.name() not in compiled_names)
+                sources.append(Path(generator.generate(str(tmp_so.parent) + os.sep)))
             size = sum(src.stat().st_size for src in sources)
             with _announce(progress, description or name, size, min(options.resolved_jobs(), len(sources)), "once per machine"):
                 compile_shared(sources, tmp_so, options)
 
         built = cached_build(entry, build)
-        return cls(name, key, entry, tuple(named), spec, time.perf_counter() - t0 if built else 0.0)
+        spec.update({fname: () for fname in extra})
+        return cls(name, key, entry, tuple(named) + tuple(extra), spec, time.perf_counter() - t0 if built else 0.0)
 
     def function(self, name: str) -> ca.Function:
         """The compiled function ``name`` as a ``casadi.external`` (loaded once per library object).

@@ -21,7 +21,9 @@ initial state. Parameters are addressed by name (:class:`ParameterLayout`).
 
 Design notes (measured on arm26, docs/ocp.md): the rigid-body RK4 is built from MX calls of the
 SX dynamics (fast to compile), the fatigue RK4 is SX; IPOPT sees scaled variables (velocities
-divided by their bound, torques by their limit).
+divided by their bound, torques by their limit). The interval functions are ``map``-ped and the
+maps recorded (:class:`~fatigue_pin.blocks.MappedCall`), so that in library mode IPOPT's
+Jacobian and Hessian are assembled from their per-interval derivative blocks.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from typing import Mapping
 import casadi as ca
 import numpy as np
 
+from fatigue_pin.blocks import BlockPair, MappedCall, block_functions, differentiated_inputs, nlp_derivatives
 from fatigue_pin.costs import IntervalVariables
 from fatigue_pin.errors import ParameterError
 from fatigue_pin.problem import Problem, StateLayout
@@ -142,6 +145,8 @@ class IntervalFunctions:
         else:
             self.F_fatigue = ca.Function("F_fatigue", [m, u, p], [rk4(self.f_fatigue, m, (u, p), h, substeps)], ["m", "u", "p"], ["m_next"])
         self.library = None  # the compiled library once :meth:`use` has swapped the functions
+        #: derivative blocks per interval function (:mod:`fatigue_pin.blocks`), once built
+        self.blocks: dict[str, BlockPair] = {}
 
         x = ca.SX.sym("x", nx)
         u_prev = ca.SX.sym("u_prev", nu)
@@ -155,10 +160,26 @@ class IntervalFunctions:
         """The functions a compiled library holds (:mod:`fatigue_pin.compiled`)."""
         return [self.F_rb, self.F_fatigue, self.coupling, self.terms]
 
+    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]]) -> None:
+        """Build the derivative blocks (:func:`fatigue_pin.blocks.block_functions`) of the
+        library functions named in ``diffs``, for the inputs given there (those that depend on
+        the decision variables), from the original functions."""
+        for f in self.library_functions():
+            if f.name() in diffs:
+                self.blocks[f.name()] = block_functions(f, diffs[f.name()])
+
+    def block_functions(self) -> list[ca.Function]:
+        """The block functions of :attr:`blocks` (compiled without derivatives)."""
+        return [g for pair in self.blocks.values() for g in (pair.jac, pair.hess)]
+
     def use(self, library) -> None:
-        """Replace :meth:`library_functions` by their compiled externals from ``library``."""
-        for name, f in library.functions().items():
-            setattr(self, name, f)
+        """Replace :meth:`library_functions` (and the block functions) by their compiled
+        externals from ``library``."""
+        functions = library.functions()
+        for f in self.library_functions():
+            setattr(self, f.name(), functions[f.name()])
+        self.blocks = {name: BlockPair(pair.diff, functions[pair.jac.name()], functions[pair.hess.name()])
+                       for name, pair in self.blocks.items() if pair.jac.name() in functions}
         self.library = library
 
     def step(self, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -323,8 +344,11 @@ class Ocp:
             self._build_library(progress)
             library_compile_s = self.functions.library.compile_time_s
         opti = self._formulate()
+        if self._uses_blocks and self.functions.library is None and not self.functions.blocks:  # uncompiled
+            self.functions.build_blocks(self._differentiated_inputs(opti.x))
+        blocks = self._block_derivatives if self._uses_blocks else None
         self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
-                             label=f"the {self.model.name} NLP of {self.n_cycles} cycles")
+                             label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks)
         #: compile time paid by this build (s): the library (once per model) or the whole NLP
         self.compile_time_s = self.nlp.compile_time_s + library_compile_s
         self.build_time_s = time.perf_counter() - t0
@@ -335,6 +359,11 @@ class Ocp:
         if self.transcription.parallel == "auto" and self.solver_options.library_mode:
             return "thread"  # CasADi's virtual machine evaluates the maps of the compiled externals
         return self.transcription.map_mode(self.solver_options.compile)
+
+    @property
+    def mapped_calls(self) -> tuple[MappedCall, ...]:
+        """The interval functions as mapped in the NLP (:class:`fatigue_pin.blocks.MappedCall`)."""
+        return tuple(self._mapped)
 
     @property
     def library(self):
@@ -356,15 +385,32 @@ class Ocp:
             x, p, f, g = probe.x, probe.p, probe.f, probe.g
             gi, *_ = ca.detect_simple_bounds(x, p, g, probe.lbg, probe.ubg)
             nlp = {"x": x, "p": p, "f": f, "g": g[[int(i) for i in gi]]}
-            solver = ca.nlpsol("probe", "ipopt", nlp, {"print_time": False})
+            opts: dict = {"print_time": False}
+            if self._uses_blocks:
+                self.functions.build_blocks(self._differentiated_inputs(x))
+                opts.update(self._block_derivatives(nlp) or {})
+                if not opts.keys() & {"jac_g", "hess_lag"}:
+                    self.functions.blocks = {}  # not usable for this problem: CasADi's own derivatives
+            solver = ca.nlpsol("probe", "ipopt", nlp, opts)
         finally:
             self.n_intervals = saved
         functions = self.functions.library_functions()
+        # with the blocks, only the gradients (adj1_) are evaluated of the interval functions
         derivatives = requested_derivatives(solver, [fn.name() for fn in functions])
         name = re.sub(r"[^A-Za-z0-9_]", "_", f"{self.model.name}_intervals")
         library = FunctionLibrary.build(functions, name, self.solver_options.build_options(), derivatives=derivatives,
-                                        progress=progress, description=f"the {self.model.name} interval functions")
+                                        progress=progress, description=f"the {self.model.name} interval functions",
+                                        plain=self.functions.block_functions())
         self.functions.use(library)
+
+    def _block_derivatives(self, nlp: Mapping[str, ca.MX]) -> dict[str, ca.Function] | None:
+        """nlpsol's ``jac_g`` and ``hess_lag`` from the interval functions' derivative blocks
+        (:func:`fatigue_pin.blocks.nlp_derivatives`), or None without usable blocks."""
+        if not self.functions.blocks:
+            return None
+        mode = self.map_mode
+        par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+        return nlp_derivatives(nlp, self._mapped, self.functions.blocks, par)
 
     def _formulate(self) -> ca.Opti:
         """The NLP as a ``casadi.Opti`` problem; sets ``X, U, T``, the parameters and the
@@ -393,10 +439,18 @@ class Ocp:
         ny, nv = layout.nq + layout.nv, layout.nv
         mode = self.map_mode
         par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+        #: the mapped interval functions (for the derivative blocks, :mod:`fatigue_pin.blocks`)
+        self._mapped: list[MappedCall] = []
+
+        def mapped(f: ca.Function, n: int, *args: ca.MX, how: tuple = par) -> ca.MX:
+            out = f.map(n, *how)(*args)
+            self._mapped.append(MappedCall(f, tuple(args), out, n))
+            return out
+
         opti.subject_to(T == U[:nv, :] + U[nv:, :])
-        opti.subject_to(X[:ny, 1:] == fn.F_rb.map(N, *par)(X[:ny, :N], T))
-        opti.subject_to(X[ny:, 1:] == fn.F_fatigue.map(N, *par)(X[ny:, :N], U, P_fatigue))
-        coupling = fn.coupling.map(N + 1)(X, ca.horzcat(U, U[:, N - 1]))
+        opti.subject_to(X[:ny, 1:] == mapped(fn.F_rb, N, X[:ny, :N], T))
+        opti.subject_to(X[ny:, 1:] == mapped(fn.F_fatigue, N, X[ny:, :N], U, P_fatigue))
+        coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
         opti.subject_to(opti.bounded(0, coupling, 1))
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
@@ -418,8 +472,24 @@ class Ocp:
         Xn, Un = ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", nu, N)
         terms = fn.terms.map(N)(Xn[:, :N], Un, ca.horzcat(Un[:, 0], Un[:, : N - 1])) if n_terms else ca.MX(0, N)
         self._terms_fn = ca.Function("interval_terms", [Xn, Un], [terms])
-        opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_fn(X, U))) if n_terms else ca.MX(0))
+        if n_terms and self._uses_blocks:  # the map itself in the graph, where the blocks find it
+            opti.minimize(ca.dot(P_weights, ca.sum2(mapped(fn.terms, N, X[:, :N], U, ca.horzcat(U[:, 0], U[:, : N - 1]), how=()))))
+        else:  # as before the blocks (the same generated code, so `nlp` mode keeps its cache entries)
+            opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_fn(X, U))) if n_terms else ca.MX(0))
         return opti
+
+    @property
+    def _uses_blocks(self) -> bool:
+        """Whether IPOPT gets the derivative-block Jacobian and Hessian
+        (:attr:`SolverOptions.derivative_blocks`: by default in library mode)."""
+        options = self.solver_options
+        if options.derivative_blocks is None:
+            return options.library_mode
+        return bool(options.derivative_blocks) and (options.library_mode or not options.compile)
+
+    def _differentiated_inputs(self, x: ca.MX) -> dict[str, tuple[int, ...]]:
+        """Per mapped interval function, the inputs that depend on the decision variables ``x``."""
+        return {c.function.name(): differentiated_inputs(c, x) for c in self._mapped}
 
     # -- parameters and bounds -------------------------------------------------------------------
 

@@ -60,6 +60,8 @@ def test_key_changes_with_every_input(tmp_path, monkeypatch):
     assert library_key([tiny()], options(tmp_path, flags=("-O1",))) != key  # flags
     assert library_key([tiny()], options(tmp_path, compiler="clang")) != key  # compiler
     assert library_key([tiny()], base, derivatives=("fwd2_", "adj1_")) != key  # compiled derivatives
+    assert library_key([tiny()], base, plain=[tiny(name="h")]) != key  # functions compiled without derivatives
+    assert library_key([tiny()], base, plain=[tiny(name="h")]) != library_key([tiny()], base, plain=[tiny(3.0, "h")])
     assert library_key([tiny()], options(tmp_path, jobs=2)) == key  # parallelism is not an input
     assert library_key([tiny()], options(tmp_path, cache_dir=tmp_path / "other")) == key
     monkeypatch.setattr(compiled.ca, "__version__", "0.0.0-other")
@@ -194,6 +196,14 @@ def test_library_always_has_the_first_and_second_order_fallbacks(tmp_path):
     assert set(lib.derivatives["g"]) == {"fwd3_", *compiled.DEFAULT_DERIVATIVES}
 
 
+def test_plain_functions_are_compiled_without_derivatives(tmp_path):
+    lib = FunctionLibrary.build([tiny()], "plainlib", options(tmp_path), plain=[tiny(3.0, "h")])
+    assert lib.names == ("g", "h") and lib.derivatives["h"] == () and lib.derivatives["g"]
+    assert float(ca.norm_inf(lib.function("h")([0.1, 0.2, 0.3], [1.0, 2.0]) - tiny(3.0, "h")([0.1, 0.2, 0.3], [1.0, 2.0]))) < 1e-14
+    with pytest.raises(ParameterError, match="both with and without derivatives"):
+        FunctionLibrary.build([tiny()], "plainlib", options(tmp_path), plain=[tiny()])
+
+
 def test_derivative_names_follow_casadi():
     f = tiny()
     assert derivative(f, "fwd4_").name() == "fwd4_g"
@@ -224,8 +234,13 @@ def test_ocp_with_a_compiled_library_matches_the_uncompiled_one(arm26, tmp_path)
     ocp = OcpBuilder(problem, study.transcription(), solver, progress=lines.append)(1)
     assert ocp.library is not None and ocp.compile_time_s > 0 and ocp.map_mode == "thread"
     assert any("arm26 interval functions" in line for line in lines)
+    # the derivative blocks are compiled in the library and give IPOPT its Jacobian and Hessian
+    assert {"jblk_F_rb", "hblk_F_rb", "jblk_terms", "hblk_F_fatigue"} <= set(ocp.library.names)
+    assert set(ocp.nlp.derivatives) == {"jac_g", "hess_lag"}
+    assert all(ocp.functions.blocks[name].hess.is_a("External") for name in ("F_rb", "F_fatigue"))
     sol = ocp.solve()
     assert sol.success and sol.iterations == reference.iterations
+    assert sol.objective == pytest.approx(reference.objective, rel=1e-8)
     assert np.allclose(sol.x, reference.x, atol=1e-8)
     # another horizon, another process's builder: no compile, the same library
     again = OcpBuilder(problem, study.transcription(), solver)(2)
