@@ -157,11 +157,12 @@ async def _drive(chromium: str, html: Path, out: Path) -> dict:
         report = {
             "duration": await page.js("viewer.animator.duration"),
             "playing": await page.js("viewer.animator.playing"),
-            "label": await page.js("document.getElementById('fp-cycle').textContent"),
         }
         await asyncio.sleep(0.3)
         report["time_after_0.3s"] = await page.js("viewer.animator.time")
         report["first"] = await page.screenshot_at(0.0, out / "replay_t0.png")
+        # read at t = 0 after a frame (right after loading, a busy machine may already be in cycle 2)
+        report["label"] = await page.js("new Promise(r => requestAnimationFrame(() => r(document.getElementById('fp-cycle').textContent)))")
         report["color_first"] = await page.js(_marker_color("elbow_plus"))
         report["middle"] = await page.screenshot_at(0.5, out / "replay_t0.5.png")
         end = report["duration"] - 1e-3
