@@ -357,12 +357,13 @@ class Ocp:
     @property
     def map_mode(self) -> str:
         """How the interval functions (and their derivative blocks) are mapped. In library mode
-        with ``parallel="auto"``: ``serial`` with the derivative blocks (on 2 cores shared with
-        other solver processes, 15-30 % less time per iteration than ``thread`` from 4 to 32 cycles,
-        sliding window 0.75 s against 1.1 s, docs/ocp.md), ``thread`` without them."""
+        with ``parallel="auto"``: ``thread`` (on an idle 2-core machine 10-17 % less time per
+        iteration than ``serial`` from 4 to 32 cycles, sliding window 0.49 s against 0.60 s; on
+        cores shared with other solver processes ``serial`` was 15-30 % faster, so set
+        ``Transcription(parallel="serial")`` there; docs/ocp.md)."""
         if self.transcription.parallel == "auto" and self.solver_options.library_mode:
             # CasADi's virtual machine evaluates the maps of the compiled externals
-            return "serial" if self._uses_blocks else "thread"
+            return "thread"
         return self.transcription.map_mode(self.solver_options.compile)
 
     @property
