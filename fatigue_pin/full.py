@@ -163,7 +163,7 @@ def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | N
     compiled = f", compiled in {ocp.compile_time_s:.1f} s" if ocp.compile_time_s else ""
     rep.line(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")
     with rep.task(f"solving the {n_cycles}-cycle OCP with IPOPT"):
-        sol = ocp.solve(x_end=ocp.initial_state() if end_tolerance is not None else None)
+        sol = ocp.solve()
     rep.line(f"{sol.status}: {sol.iterations} iterations, {sol.wall_time_s:.2f} s, objective {sol.objective:.6g}")
     return ocp, sol
 
@@ -253,7 +253,7 @@ def max_repetitions(
             rep.line(f"resuming the search {name!r}: N = {sorted(done)} already done")
 
     def solve(ocp: Any, n: int, start: tuple[np.ndarray, np.ndarray] | None, label: str) -> Any:
-        sol = ocp.solve(guess=start, x_end=ocp.initial_state() if end_tolerance is not None else None)
+        sol = ocp.solve(guess=start)
         row = {"n_cycles": n, "converged": sol.success, "status": sol.status, "iterations": sol.iterations,
                "wall_time_s": sol.wall_time_s, "build_time_s": ocp.build_time_s, "kind": sol.kind, "guess": label,
                "constraint_violation": sol.nlp.constraint_violation}

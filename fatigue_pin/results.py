@@ -564,6 +564,11 @@ def _run_names(h5: h5py.File) -> list[str]:
 FAILED_WINDOW_SUFFIX = "_failed_window"
 
 
+def _main_runs(names: list[str]) -> list[str]:
+    """``names`` without the failed windows of sliding runs."""
+    return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
+
+
 def list_runs(path: str | Path, failed_windows: bool = False) -> list[str]:
     """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted; the
     failed windows of sliding runs (``*_failed_window``) only with ``failed_windows=True``."""
@@ -572,7 +577,7 @@ def list_runs(path: str | Path, failed_windows: bool = False) -> list[str]:
             names = _run_names(h5)
         except (OSError, RuntimeError) as exc:
             raise ResultFileError(f"{str(path)!r} is damaged: its groups cannot be listed ({exc})") from None
-    return names if failed_windows else [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
+    return names if failed_windows else _main_runs(names)
 
 
 def read_run(path: str | Path, name: str | None = None) -> RunResult:
@@ -581,7 +586,7 @@ def read_run(path: str | Path, name: str | None = None) -> RunResult:
     with _open(path) as h5:
         runs = _run_names(h5)
         if name is None:
-            main = [r for r in runs if not r.endswith(FAILED_WINDOW_SUFFIX)]
+            main = _main_runs(runs)
             if len(main) != 1:
                 raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name")
             name = main[0]

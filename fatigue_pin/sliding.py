@@ -145,7 +145,7 @@ class SlidingHorizon:
             "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue],
             "transcription": repr(self.ocp.transcription),
             "x_init": self.problem.initial_state().tolist(),
-            "model": [self.model.name, repr(getattr(self.model, "payload", None))],
+            "model": [self.model.name, repr(self.model.payload)],
         }
         return json.dumps(data, sort_keys=True)
 
@@ -179,7 +179,7 @@ class SlidingHorizon:
             return None
         return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
 
-    def _failed_window(self, sol: Any, x_init: np.ndarray, first_cycle: int, name: str) -> RunResult:
+    def _failed_window(self, sol: Any, first_cycle: int, name: str) -> RunResult:
         """The last iterate of a failed window as a run (times from the window's first cycle)."""
         ocp = self.ocp
         attrs = run_attributes(ocp, "sliding-failed-window", self.labels)
@@ -312,7 +312,7 @@ class SlidingHorizon:
             if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
                 state.done = True
             if path is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
-                write_run(path, self._failed_window(sol, x_init, first_cycle, failed_window_name(name)))
+                write_run(path, self._failed_window(sol, first_cycle, failed_window_name(name)))
             if path is not None:
                 write_run(path, self._run_result(state, name, build_time))
             bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")

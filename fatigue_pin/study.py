@@ -665,8 +665,8 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     tr, sol_opts, h = study.transcription(), study.solver(cache_dir), study.horizon
     name = name or study.run_name()
     text = study.to_toml()
+    end = h["end_tolerance"] if h["cyclic_end"] else None  # the full horizons' end box
     if h["kind"] == "full":
-        end = h["end_tolerance"] if h["cyclic_end"] else None
         ocp, sol = solve_full(problem, h["cycles"], tr, sol_opts, guess=h["guess"], progress=say, end_tolerance=end)
         run = solution_to_run(ocp, sol, name, study=text, labels=study.labels)
         if out is not None:
@@ -680,4 +680,4 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
         return runner.run(out, name=name, resume=resume, progress=say)
     return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say, out=out,
                            name=name, study=text, labels=study.labels, resume=resume,
-                           end_tolerance=h["end_tolerance"] if h["cyclic_end"] else None)
+                           end_tolerance=end)

@@ -578,12 +578,13 @@ class Ocp:
 
         Args:
             x_init: initial state (nx,); default the problem's.
-            x_end: reference of the end box (nx,), used when ``end_tolerance`` is set.
+            x_end: reference of the end box (nx,), used when ``end_tolerance`` is set; default
+                ``x_init`` (the box around the horizon's initial state).
             weights: cost weights, by name (others keep the problem's) or as a full vector.
             fatigue: stacked fatigue parameters (n_params,); default the actuators'.
         """
         x_init = self._x_init(x_init)
-        X_lb, X_ub = self.state_bounds(x_init, x_end)
+        X_lb, X_ub = self.state_bounds(x_init, x_init if x_end is None else x_end)
         U_lb, U_ub = self.control_bounds()
         values: dict[str, np.ndarray] = {
             "fatigue": self.actuators.param_vector() if fatigue is None else np.asarray(fatigue, dtype=float).reshape(-1),
@@ -687,7 +688,7 @@ class Ocp:
         Args:
             x_init: fixed initial state (nx,); default the problem's.
             guess: initial guess (states (N+1, nx), controls (N, nu)); default :meth:`initial_guess`.
-            x_end: reference state of the end box (with ``end_tolerance`` set).
+            x_end: reference state of the end box (with ``end_tolerance`` set); default ``x_init``.
             warm: a previous result of the same NLP whose multipliers start this solve.
             weights: cost weights of this solve, by name or as a vector (default: the problem's).
             max_iter: IPOPT iteration limit of this solve (default: the solver options').
