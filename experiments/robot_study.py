@@ -53,6 +53,13 @@ def cycle_table(run, study: Study) -> list[dict]:
     return rows
 
 
+def _save(fig, path: Path) -> None:
+    """Lay the figure out, write it as PNG and free it."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("result", type=Path)
@@ -83,9 +90,7 @@ def main() -> None:
     ax.set(xlabel="cycle", ylabel="mf at the end of the cycle", title="UR5 carrying 4 kg: fatigued fraction of the halves that tire")
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(args.out / "robot_fatigue.png", dpi=90)
-    plt.close(fig)
+    _save(fig, args.out / "robot_fatigue.png")
 
     shown = sorted({0, run.n_cycles // 2, run.n_cycles - 1})
     tt = np.linspace(0, study.data["task"]["cycle_duration"], n + 1)
@@ -100,9 +105,7 @@ def main() -> None:
         ax.set_xlabel("t in the cycle (s)")
     axes[0, 0].set_ylabel("q (rad)")
     axes[1, 0].set_ylabel("q (rad)")
-    fig.tight_layout()
-    fig.savefig(args.out / "robot_joints.png", dpi=90)
-    plt.close(fig)
+    _save(fig, args.out / "robot_joints.png")
 
     share = np.array([r["rms_share"] for r in rows])
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
@@ -111,9 +114,7 @@ def main() -> None:
     ax.set(xlabel="cycle", ylabel="RMS torque / limit", title="Load carried by each joint, per cycle")
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(args.out / "robot_torque_share.png", dpi=90)
-    plt.close(fig)
+    _save(fig, args.out / "robot_torque_share.png")
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8))
     pm = model.pin_model
@@ -132,9 +133,7 @@ def main() -> None:
         a.set_aspect("equal", adjustable="datalim")
         a.grid(alpha=0.3)
     a1.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(args.out / "robot_tool_path.png", dpi=90)
-    plt.close(fig)
+    _save(fig, args.out / "robot_tool_path.png")
 
 
 if __name__ == "__main__":
