@@ -1,8 +1,10 @@
 """The authors' full-horizon variant (issue 16, item 3): does it fail at the paper's counts + 1?
 
 Solves ``studies/curl_full_authors-variant.toml`` (the authors-code values with their end box,
-a solve from rest per N, IPOPT's mu_init 0.1 and perturb_dec_fact 1/3, no scaling, acceptable
-level accepted; ``fatigue_pin.paper.authors_variant_dict``) for each cost and stabiliser at the
+the task targets as constraint rows, no joint-torque variable, a solve from rest per N, IPOPT's
+mu_init 0.1 and perturb_dec_fact 1/3, no scaling, acceptable level accepted;
+``fatigue_pin.paper.authors_variant_dict``; ``--set transcription.target_rows=false`` and the
+like undo one of them) for each cost and stabiliser at the
 paper's count and one more: S = 10 at 32 and 33 cycles, S = 0 at 20/21 (fatigue-torque), 18/19
 (fatigue) and 14/15 (torque). For each solve it prints IPOPT's status, how it ended
 (``fatigue_pin.solver.failure_kind``), iterations, time, the worst |1 - (ma + mr + mf)| on the
@@ -12,13 +14,14 @@ needed a Hessian regularisation and its largest size. Converged runs are written
 not repeated). Usage::
 
     python experiments/authors_variant.py --out results/authors_variant [--max-wall-time 600]
-        [--only fatigue-torque:10:33 torque:0:15 ...]
+        [--only fatigue-torque:10:33 torque:0:15 ...] [--set transcription.target_rows=false ...]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -37,9 +40,10 @@ def cases() -> list[tuple[str, float, int]]:
     return out
 
 
-def solve_case(cost: str, S: float, n: int, max_wall_time: float | None, out: Path) -> dict:
+def solve_case(cost: str, S: float, n: int, max_wall_time: float | None, out: Path,
+               changes: dict | None = None) -> dict:
     solver = {"max_wall_time": max_wall_time} if max_wall_time else {}
-    study = Study.from_dict(authors_variant_dict(cost, S, n, solver=solver))
+    study = Study.from_dict(authors_variant_dict(cost, S, n, solver=solver)).replace(changes or {})
     h = study.horizon
     ocp, sol = solve_full(study.problem(), n, study.transcription(), study.solver(), guess=h["guess"],
                           end_tolerance=h["end_tolerance"])
@@ -65,7 +69,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("results/authors_variant"), help="output folder")
     parser.add_argument("--max-wall-time", type=float, default=600.0, help="wall-time limit of one solve (s)")
     parser.add_argument("--only", nargs="*", default=None, help="cases cost:S:N (default: all)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="change a key of the variant, e.g. transcription.target_rows=false (TOML value)")
     args = parser.parse_args(argv)
+    changes = {k: tomllib.loads(f"v = {v}")["v"] for k, v in (s.split("=", 1) for s in args.set)}
     args.out.mkdir(parents=True, exist_ok=True)
     table_path = args.out / "variant.json"
     rows = json.loads(table_path.read_text()) if table_path.exists() else []
@@ -75,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         if (cost, S, n) in done:
             continue
         print(f"== {cost}, S = {S:g}, N = {n}", flush=True)
-        row = solve_case(cost, S, n, args.max_wall_time, args.out)
+        row = solve_case(cost, S, n, args.max_wall_time, args.out, changes)
         print(row, flush=True)
         rows.append(row)
         tmp = table_path.with_suffix(".tmp")

@@ -165,13 +165,14 @@ def curl_study(*args, **kwargs):
     return Study.from_dict(curl_study_dict(*args, **kwargs))
 
 
-#: The authors' full-horizon settings that a study can state (docs/authors-code.md, D1, D9, D10,
-#: D11, D12): end box, rest guess per N, IPOPT's own mu_init and perturb_dec_fact, no scaling,
-#: Solved_To_Acceptable_Level accepted.
+#: The authors' full-horizon settings that a study can state (docs/authors-code.md, D1, D3, D4,
+#: D9, D10, D11, D12): end box, task targets as constraint rows, no joint-torque variable, rest
+#: guess per N, IPOPT's own mu_init and perturb_dec_fact, no scaling, Solved_To_Acceptable_Level
+#: accepted.
 AUTHORS_VARIANT = {
     "horizon": {"cyclic_end": True, "end_tolerance": 0.01, "guess": "rest"},
     "solver": {"mu_init": 0.1, "perturb_dec_fact": 1.0 / 3.0, "accept_acceptable": True},
-    "transcription": {"scaling": False},
+    "transcription": {"scaling": False, "target_rows": True, "torque_variable": False},
 }
 
 

@@ -264,6 +264,20 @@ def _host_key(options: SolverOptions) -> bytes:
     return host_key(options.compiler_flags)
 
 
+def simple_bounds(x: ca.MX, p: ca.MX, g: ca.MX, lbg: ca.MX, ubg: ca.MX,
+                  kept_rows: Sequence[int] = ()) -> tuple[list[int], ca.MX, ca.MX]:
+    """``casadi.detect_simple_bounds`` that leaves ``kept_rows`` of ``g`` in ``g``.
+
+    Returns:
+        The rows of ``g`` that stay constraints (those of ``kept_rows`` last), and the variable
+        bounds ``lbx, ubx`` (n_x,) as expressions of the parameters ``p``.
+    """
+    kept = sorted({int(i) for i in kept_rows})
+    others = [i for i in range(g.numel()) if i not in set(kept)] if kept else list(range(g.numel()))
+    gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g[others], lbg[others], ubg[others])
+    return [others[int(i)] for i in gi] + kept, lbx, ubx
+
+
 class NlpSolver:
     """An Opti formulation turned into a reusable IPOPT solver.
 
@@ -277,10 +291,12 @@ class NlpSolver:
         derivatives: in library mode, called with the reduced NLP (:attr:`problem`); returns
             nlpsol's own ``jac_g`` and ``hess_lag`` (:func:`fatigue_pin.blocks.nlp_derivatives`)
             or None for CasADi's.
+        kept_rows: rows of ``opti.g`` kept as constraints even where they bound one variable.
     """
 
     def __init__(self, opti: ca.Opti, options: SolverOptions, name: str = "fatigue_ocp", progress: Progress = None,
-                 label: str = "the NLP", derivatives: Callable[[dict[str, ca.MX]], dict[str, ca.Function] | None] | None = None) -> None:
+                 label: str = "the NLP", derivatives: Callable[[dict[str, ca.MX]], dict[str, ca.Function] | None] | None = None,
+                 kept_rows: Sequence[int] = ()) -> None:
         t0 = time.perf_counter()
         self._progress = as_reporter(progress)
         self._label = label
@@ -288,8 +304,7 @@ class NlpSolver:
         self.opti = opti
         x, p, f, g = opti.x, opti.p, opti.f, opti.g
         lbg, ubg = opti.lbg, opti.ubg
-        gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g, lbg, ubg)
-        gi = [int(i) for i in gi]
+        gi, lbx, ubx = simple_bounds(x, p, g, lbg, ubg, kept_rows)
         self.n_x = x.numel()
         self.n_p = p.numel()
         self.n_g = len(gi)

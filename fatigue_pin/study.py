@@ -83,6 +83,8 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "scaling": (_is_bool, "true or false", True),
         "parallel": (_is_str, "'auto', 'serial', 'openmp' or 'thread'", "auto"),
         "expand": (_is_bool, "true or false", False),
+        "torque_variable": (_is_bool, "true or false", True),
+        "target_rows": (_is_bool, "true or false", False),
     },
     "horizon": {
         "kind": (_is_str, "'full', 'sliding' or 'max-cycles'", "full"),

@@ -41,7 +41,7 @@ from fatigue_pin.costs import IntervalVariables
 from fatigue_pin.errors import ParameterError
 from fatigue_pin.problem import Problem, StateLayout
 from fatigue_pin.progress import Progress
-from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions
+from fatigue_pin.solver import NlpResult, NlpSolver, SolverOptions, simple_bounds
 from fatigue_pin.task import joint_target_pairs
 
 #: Integrators of the shooting intervals.
@@ -64,6 +64,12 @@ class Transcription:
             ``nlp`` mode, ``serial`` uncompiled; library mode: :attr:`Ocp.map_mode`).
         expand: integrate the rigid body as one expanded SX function per interval (slow to
             compile; kept for comparisons).
+        torque_variable: the joint torque T = tau_plus + tau_minus (nv, N) is a decision variable
+            of its own, tied by an equality row, and the rigid body takes T; ``False`` puts the
+            sum of the halves into the rigid body directly (how the paper's code does it).
+        target_rows: joint targets as equality rows in g instead of fixed variables (bounds
+            lb = ub); a target at node 0 then duplicates the fixed initial state (how the paper's
+            code does it). Same feasible set, other KKT systems: for comparisons.
     """
 
     substeps: int = 5
@@ -71,6 +77,8 @@ class Transcription:
     scaling: bool = True
     parallel: str = "auto"
     expand: bool = False
+    torque_variable: bool = True
+    target_rows: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, np.integer)) or self.substeps < 1:
@@ -79,6 +87,9 @@ class Transcription:
             raise ParameterError(f"Transcription.integrator = {self.integrator!r}: expected one of {list(INTEGRATORS)}")
         if self.parallel not in MAP_MODES:
             raise ParameterError(f"Transcription.parallel = {self.parallel!r}: expected one of {list(MAP_MODES)}")
+        for name in ("scaling", "expand", "torque_variable", "target_rows"):
+            if not isinstance(getattr(self, name), bool):
+                raise ParameterError(f"Transcription.{name} = {getattr(self, name)!r}: expected true or false")
 
     def map_mode(self, compiled: bool) -> str:
         if self.parallel == "auto":
@@ -348,7 +359,8 @@ class Ocp:
             self.functions.build_blocks(self._differentiated_inputs(opti.x))
         blocks = self._block_derivatives if self._uses_blocks else None
         self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
-                             label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks)
+                             label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks,
+                             kept_rows=self.kept_rows)
         #: compile time paid by this build (s): the library (once per model) or the whole NLP
         self.compile_time_s = self.nlp.compile_time_s + library_compile_s
         self.build_time_s = time.perf_counter() - t0
@@ -389,8 +401,8 @@ class Ocp:
         try:
             probe = self._formulate()
             x, p, f, g = probe.x, probe.p, probe.f, probe.g
-            gi, *_ = ca.detect_simple_bounds(x, p, g, probe.lbg, probe.ubg)
-            nlp = {"x": x, "p": p, "f": f, "g": g[[int(i) for i in gi]]}
+            gi, *_ = simple_bounds(x, p, g, probe.lbg, probe.ubg, self.kept_rows)
+            nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
             opts: dict = {"print_time": False}
             if self._uses_blocks:
                 self.functions.build_blocks(self._differentiated_inputs(x))
@@ -428,12 +440,15 @@ class Ocp:
         self.x_scale, self.u_scale, self.t_scale = self._variable_scales()
         Xs = opti.variable(nx, N + 1)
         Us = opti.variable(nu, N)
-        # joint torque tau_plus + tau_minus as its own variable: the rigid-body dynamics then
-        # depend on nv torques instead of 2 nv halves, which halves the exact Hessian's cost
-        Ts = opti.variable(layout.nv, N)
         X = ca.diag(ca.DM(self.x_scale)) @ Xs
         U = ca.diag(ca.DM(self.u_scale)) @ Us
-        T = ca.diag(ca.DM(self.t_scale)) @ Ts
+        if self.transcription.torque_variable:
+            # joint torque tau_plus + tau_minus as its own variable: the rigid-body dynamics then
+            # depend on nv torques instead of 2 nv halves, which halves the exact Hessian's cost
+            Ts = opti.variable(layout.nv, N)
+            T = ca.diag(ca.DM(self.t_scale)) @ Ts
+        else:
+            T = U[: layout.nv, :] + U[layout.nv :, :]
         self.X, self.U, self.T = X, U, T
         params = ParameterLayout(opti)
         P_fatigue = params.add("fatigue", self.actuators.n_params)
@@ -453,13 +468,21 @@ class Ocp:
             self._mapped.append(MappedCall(f, tuple(args), out, n))
             return out
 
-        opti.subject_to(T == U[:nv, :] + U[nv:, :])
+        if self.transcription.torque_variable:
+            opti.subject_to(T == U[:nv, :] + U[nv:, :])
         opti.subject_to(X[:ny, 1:] == mapped(fn.F_rb, N, X[:ny, :N], T))
         opti.subject_to(X[ny:, 1:] == mapped(fn.F_fatigue, N, X[ny:, :N], U, P_fatigue))
         coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
         opti.subject_to(opti.bounded(0, coupling, 1))
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
+        #: rows of g that stay constraints although they bound one variable (``target_rows``)
+        self.kept_rows: tuple[int, ...] = ()
+        if self.transcription.target_rows:
+            first = opti.g.numel()
+            for node, j, a, b in joint_target_pairs(self.task, self.model, N):
+                opti.subject_to(opti.bounded(a, X[j, node], b))
+            self.kept_rows = tuple(range(first, opti.g.numel()))
         # state constraints of the task: expression rows with parametric bounds
         self._state_constraints = []
         for sc in self.task.expression_constraints(self.model, layout):  # StateConstraints, frame targets, planes
@@ -547,7 +570,8 @@ class Ocp:
             X_lb[j, :] = np.maximum(X_lb[j, :], rng.lower)
             X_ub[j, :] = np.minimum(X_ub[j, :], rng.upper)
         X_lb[:, 0] = X_ub[:, 0] = x_init
-        targets = joint_target_pairs(self.task, self.model, N)
+        # with target_rows the targets are rows of g (:meth:`_formulate`), not bounds
+        targets = [] if self.transcription.target_rows else joint_target_pairs(self.task, self.model, N)
         for node, j, a, b in targets:
             X_lb[j, node], X_ub[j, node] = a, b
         tol = self.end_tolerance
@@ -648,12 +672,14 @@ class Ocp:
         return self.rollout_fatigue(x_init, q, qdot, u), u
 
     def flatten(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Decision vector in the NLP's order (X, U, T) from states (N+1, nx) and controls (N, nu)."""
+        """Decision vector in the NLP's order (X, U[, T]) from states (N+1, nx) and controls (N, nu)."""
         x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float)
         nv = self.layout.nv
-        tau = u[:, :nv] + u[:, nv:]
-        xs, us, ts = x / self.x_scale, u / self.u_scale, tau / self.t_scale
-        return np.concatenate([xs.T.reshape(-1, order="F"), us.T.reshape(-1, order="F"), ts.T.reshape(-1, order="F")])
+        xs, us = x / self.x_scale, u / self.u_scale
+        parts = [xs.T.reshape(-1, order="F"), us.T.reshape(-1, order="F")]
+        if self.transcription.torque_variable:
+            parts.append(((u[:, :nv] + u[:, nv:]) / self.t_scale).T.reshape(-1, order="F"))
+        return np.concatenate(parts)
 
     def unflatten(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, nx) and controls (N, nu) from a decision vector."""

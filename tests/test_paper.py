@@ -32,7 +32,7 @@ def test_shipped_authors_variant_is_the_paper_modules():
     assert shipped.data == Study.from_dict(authors_variant_dict()).data
     solver, tr = shipped.solver(), shipped.transcription()
     assert solver.accept_acceptable and solver.mu_init == 0.1 and abs(solver.perturb_dec_fact - 1 / 3) < 1e-15
-    assert not tr.scaling and shipped.horizon["cyclic_end"] and shipped.horizon["guess"] == "rest"
+    assert not tr.scaling and tr.target_rows and not tr.torque_variable and shipped.horizon["cyclic_end"] and shipped.horizon["guess"] == "rest"
     assert shipped.run_name() == "full/authors-variant_fatigue-torque_S10"
 
 

@@ -162,6 +162,22 @@ def test_scaling_changes_iterations_not_the_solution(small_problem, build):
     assert np.allclose(a.q, b.q, atol=1e-3)
 
 
+def test_the_papers_code_structure_gives_the_same_solution(small_problem, build):
+    """Targets as g rows and no joint-torque variable (the paper's code): the same optimum."""
+    ours = build(2)
+    theirs = Ocp(small_problem, 2, Transcription(substeps=2, torque_variable=False, target_rows=True), build.solver)
+    n_targets = len(joint_target_pairs(ours.task, ours.model, ours.n_intervals))
+    # g loses the nv x N torque rows and gains one row per target (node 0's included)
+    assert theirs.nlp.n_g == ours.nlp.n_g - ours.layout.nv * ours.n_intervals + n_targets
+    assert theirs.nlp.n_x == ours.nlp.n_x - ours.layout.nv * ours.n_intervals
+    assert len(theirs.kept_rows) == n_targets
+    a, b = ours.solve(), theirs.solve()
+    assert a.success and b.success, (a.status, b.status)
+    assert a.objective == pytest.approx(b.objective, rel=1e-5)
+    assert np.allclose(a.q, b.q, atol=1e-3) and np.allclose(a.u, b.u, atol=1e-2)
+    check_solution(theirs, b)
+
+
 def test_rest_guess_is_the_initial_state_with_zero_torque(small_problem, build):
     ocp = build(2)
     x, u = ocp.initial_guess()
@@ -184,6 +200,7 @@ def test_failure_is_a_result(small_problem, build):
         ({"substeps": 0}, "substeps"),
         ({"integrator": "euler"}, "integrator"),
         ({"parallel": "gpu"}, "parallel"),
+        ({"target_rows": 1}, "target_rows"),
     ],
 )
 def test_bad_transcription(changes, match):
