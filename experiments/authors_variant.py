@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ import numpy as np
 from fatigue_pin.full import solution_to_run, solve_full
 from fatigue_pin.paper import PAPER_REPETITIONS, authors_variant_dict
 from fatigue_pin.results import write_run
-from fatigue_pin.study import Study
+from fatigue_pin.study import Study, parse_changes
 
 
 def cases() -> list[tuple[str, float, int]]:
@@ -72,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="change a key of the variant, e.g. transcription.target_rows=false (TOML value)")
     args = parser.parse_args(argv)
-    changes = {k: tomllib.loads(f"v = {v}")["v"] for k, v in (s.split("=", 1) for s in args.set)}
+    changes = parse_changes(args.set)
     args.out.mkdir(parents=True, exist_ok=True)
     table_path = args.out / "variant.json"
     rows = json.loads(table_path.read_text()) if table_path.exists() else []

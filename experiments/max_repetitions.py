@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--costs", nargs="+", default=list(COSTS), choices=list(COSTS))
     parser.add_argument("--stabilization", type=float, nargs="+", default=[10.0, 0.0])
     parser.add_argument("--max-wall-time", type=float, default=None, help="wall-time limit of one solve (s)")
-    parser.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration limit of one solve")
+    parser.add_argument("--max-iter", type=int, default=None, help="IPOPT iteration limit of one solve (default: the solver's)")
     parser.add_argument("--compile-mode", default="library", choices=["library", "nlp"],
                         help="nlp: compile each horizon's whole NLP once (~75 s, shared by every cost and S), "
                              "then iterate about twice as fast: the better choice for long solves")
@@ -48,9 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     summary = []
     for S in args.stabilization:
         for cost in args.costs:
-            study = curl_study("max-cycles", cost, args.preset, S, max_cycles=args.n_max,
-                               solver={"max_wall_time": args.max_wall_time, "max_iter": args.max_iter,
-                                       "compile_mode": args.compile_mode})
+            solver = {"max_wall_time": args.max_wall_time, "compile_mode": args.compile_mode}
+            if args.max_iter is not None:
+                solver["max_iter"] = args.max_iter
+            study = curl_study("max-cycles", cost, args.preset, S, max_cycles=args.n_max, solver=solver)
             print(f"== {cost}, S = {S:g}, preset {args.preset}", flush=True)
             t0 = time.perf_counter()
             out = args.out / f"full_{cost}_S{S:g}.h5"

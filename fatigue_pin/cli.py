@@ -109,30 +109,12 @@ def _cmd_max_cycles(args: argparse.Namespace) -> int:
     return _run(_curl_study(args, "max-cycles"), args)
 
 
-def _parse_sets(pairs: list[str]) -> dict[str, object]:
-    """``key=value`` pairs of ``--set``; values are read as TOML (numbers, strings, lists)."""
-    import tomllib
-
-    from fatigue_pin.study import StudyError
-
-    out: dict[str, object] = {}
-    for pair in pairs:
-        if "=" not in pair:
-            raise StudyError(f"--set {pair!r}: expected KEY=VALUE, e.g. fatigue.S=0")
-        key, text = pair.split("=", 1)
-        try:
-            out[key.strip()] = tomllib.loads(f"v = {text}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[key.strip()] = text
-    return out
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
-    from fatigue_pin.study import Study
+    from fatigue_pin.study import Study, parse_changes
 
     study = Study.from_file(args.study)
     if args.set:
-        study = study.replace(_parse_sets(args.set))
+        study = study.replace(parse_changes(args.set))
     return _run(study, args)
 
 

@@ -273,7 +273,10 @@ def simple_bounds(x: ca.MX, p: ca.MX, g: ca.MX, lbg: ca.MX, ubg: ca.MX,
         bounds ``lbx, ubx`` (n_x,) as expressions of the parameters ``p``.
     """
     kept = sorted({int(i) for i in kept_rows})
-    others = [i for i in range(g.numel()) if i not in set(kept)] if kept else list(range(g.numel()))
+    if not kept:
+        gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g, lbg, ubg)
+        return [int(i) for i in gi], lbx, ubx
+    others = sorted(set(range(g.numel())) - set(kept))
     gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g[others], lbg[others], ubg[others])
     return [others[int(i)] for i in gi] + kept, lbx, ubx
 

@@ -32,6 +32,21 @@ class StudyError(FatiguePinError, ValueError):
 REQUIRED = object()
 
 
+def parse_changes(pairs: list[str]) -> dict[str, Any]:
+    """Dotted ``KEY=VALUE`` pairs (``--set``) as :meth:`Study.replace` changes; values are read
+    as TOML (numbers, booleans, strings, lists), and kept as text where they are not TOML."""
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise StudyError(f"--set {pair!r}: expected KEY=VALUE, e.g. fatigue.S=0")
+        key, text = pair.split("=", 1)
+        try:
+            out[key.strip()] = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[key.strip()] = text
+    return out
+
+
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 

@@ -379,6 +379,13 @@ class Ocp:
         return self.transcription.map_mode(self.solver_options.compile)
 
     @property
+    def _map_args(self) -> tuple:
+        """Arguments of ``Function.map`` after the count: :attr:`map_mode`, and the thread count
+        with ``thread``."""
+        mode = self.map_mode
+        return (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+
+    @property
     def mapped_calls(self) -> tuple[MappedCall, ...]:
         """The interval functions as mapped in the NLP (:class:`fatigue_pin.blocks.MappedCall`)."""
         return tuple(self._mapped)
@@ -426,9 +433,7 @@ class Ocp:
         (:func:`fatigue_pin.blocks.nlp_derivatives`), or None without usable blocks."""
         if not self.functions.blocks:
             return None
-        mode = self.map_mode
-        par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
-        return nlp_derivatives(nlp, self._mapped, self.functions.blocks, par)
+        return nlp_derivatives(nlp, self._mapped, self.functions.blocks, self._map_args)
 
     def _formulate(self) -> ca.Opti:
         """The NLP as a ``casadi.Opti`` problem; sets ``X, U, T``, the parameters and the
@@ -458,8 +463,7 @@ class Ocp:
         self.params = params
 
         ny, nv = layout.nq + layout.nv, layout.nv
-        mode = self.map_mode
-        par = (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+        par = self._map_args
         #: the mapped interval functions (for the derivative blocks, :mod:`fatigue_pin.blocks`)
         self._mapped: list[MappedCall] = []
 
