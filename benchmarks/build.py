@@ -27,10 +27,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from fatigue_pin.full import OcpBuilder, max_repetitions
-from fatigue_pin.paper import curl_study
-from fatigue_pin.problem import Problem
-from fatigue_pin.solver import SolverOptions
+from fatigue_pin.drivers.full import OcpBuilder, max_repetitions
+from fatigue_pin.paper.curl import curl_study
+from fatigue_pin.ocp.problem import Problem
+from fatigue_pin.ocp.solver import SolverOptions
 
 STUDY = curl_study("full", "fatigue-torque", "authors-code", 10.0)
 

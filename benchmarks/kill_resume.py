@@ -40,11 +40,11 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = textwrap.dedent(
     """
     import os, sys, time
-    import fatigue_pin.full as F
-    import fatigue_pin.results as R
-    import fatigue_pin.sliding as S
-    from fatigue_pin.paper import curl_study
-    from fatigue_pin.study import run_study
+    import fatigue_pin.drivers.full as F
+    import fatigue_pin.io.results as R
+    import fatigue_pin.drivers.sliding as S
+    from fatigue_pin.paper.curl import curl_study
+    from fatigue_pin.io.study import run_study
 
     def say(line):
         sys.stdout.write(line + "\\n")
@@ -165,8 +165,8 @@ def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tup
 def stored(kind: str, out: Path) -> list[tuple]:
     """The items a file holds: windows (index, first cycle, status, converged) or search rows
     (N, converged, status); every converged N's run is read too. Raises if anything is unreadable."""
-    from fatigue_pin.full import step_run_name
-    from fatigue_pin.results import list_runs, read_run, read_search
+    from fatigue_pin.drivers.full import step_run_name
+    from fatigue_pin.io.results import list_runs, read_run, read_search
 
     if not out.exists():
         return []
@@ -189,8 +189,8 @@ def stored(kind: str, out: Path) -> list[tuple]:
 def same_result(kind: str, a: Path, b: Path, atol: float = 1e-9) -> str | None:
     """None if the runs stored in ``a`` and ``b`` are equal (tables, trajectories to ``atol``),
     else what differs."""
-    from fatigue_pin.full import step_run_name
-    from fatigue_pin.results import list_runs, read_run
+    from fatigue_pin.drivers.full import step_run_name
+    from fatigue_pin.io.results import list_runs, read_run
 
     if stored(kind, a) != stored(kind, b):
         return f"tables differ: {stored(kind, a)} != {stored(kind, b)}"

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.model import bundled_urdf
-from fatigue_pin.results import WINDOW_DTYPE, RunResult, torque_limits_at_cycle_ends, write_run
+from fatigue_pin.robot.model import bundled_urdf
+from fatigue_pin.io.results import WINDOW_DTYPE, RunResult, torque_limits_at_cycle_ends, write_run
 
 N_PER_CYCLE = 50
 

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
-from fatigue_pin.study import Study
+from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
+from fatigue_pin.io.study import Study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 CASES = {"ur5_carry": STUDIES / "ur5_carry.toml", "arm26_curl": STUDIES / "curl_sliding_fatigue_paper.toml"}

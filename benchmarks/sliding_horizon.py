@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.paper import curl_study
-from fatigue_pin.sliding import SlidingHorizon, SlidingSettings
+from fatigue_pin.paper.curl import curl_study
+from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
 
 
 def main() -> None:

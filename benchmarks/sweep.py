@@ -9,7 +9,7 @@ horizon, ``horizon.cycles`` x ``fatigue.S`` in {10, 0} x ``costs.torque.weight``
 single-threaded worker process per worker) and a fresh output folder; the cluster start and a
 warm-up (imports and model load on every worker) are timed apart from the sweep itself.
 
-Overhead: ``direct`` runs each job with :func:`fatigue_pin.sweep.run_job` in this process one after
+Overhead: ``direct`` runs each job with :func:`fatigue_pin.sweep.jobs.run_job` in this process one after
 the other; the same jobs through one Dask worker cost that plus the scheduler's overhead. Jobs of
 trivial size (``solver.max_iter = 0``) make the difference visible; ``no-op task`` is the round
 trip of an empty Dask task.
@@ -29,8 +29,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 def _warm() -> None:
     """Imports and the model load, once per worker (what the first job would pay)."""
-    from fatigue_pin.model import load_model
-    from fatigue_pin.study import run_study  # noqa: F401
+    from fatigue_pin.robot.model import load_model
+    from fatigue_pin.io.study import run_study  # noqa: F401
 
     load_model()
 
@@ -42,7 +42,7 @@ def _noop() -> None:
 def _jobs(cycles: list[int], trivial: bool = False):
     from conftest import small_curl
 
-    from fatigue_pin.sweep import Sweep
+    from fatigue_pin.sweep.jobs import Sweep
 
     base = small_curl("full")
     grid = {"horizon.cycles": cycles, "fatigue.S": [10.0, 0.0], "costs.torque.weight": [1.0, 2.0]}
@@ -55,7 +55,7 @@ def _jobs(cycles: list[int], trivial: bool = False):
 def _sweep(jobs, workers: int) -> dict[str, float]:
     from distributed import Client
 
-    from fatigue_pin.sweep import local_cluster, run_sweep
+    from fatigue_pin.sweep.jobs import local_cluster, run_sweep
 
     t0 = time.perf_counter()
     with local_cluster(workers) as cluster, Client(cluster) as client:
@@ -79,7 +79,7 @@ def _sweep(jobs, workers: int) -> dict[str, float]:
 
 
 def _direct(jobs) -> float:
-    from fatigue_pin.sweep import run_job
+    from fatigue_pin.sweep.jobs import run_job
 
     _warm()
     with tempfile.TemporaryDirectory() as out:

@@ -3,11 +3,11 @@
 Solves ``studies/curl_full_authors-variant.toml`` (the authors-code values with their end box,
 the task targets as constraint rows, no joint-torque variable, a solve from rest per N, IPOPT's
 mu_init 0.1 and perturb_dec_fact 1/3, no scaling, acceptable level accepted;
-``fatigue_pin.paper.authors_variant_dict``; ``--set transcription.target_rows=false`` and the
+``fatigue_pin.paper.curl.authors_variant_dict``; ``--set transcription.target_rows=false`` and the
 like undo one of them) for each cost and stabiliser at the
 paper's count and one more: S = 10 at 32 and 33 cycles, S = 0 at 20/21 (fatigue-torque), 18/19
 (fatigue) and 14/15 (torque). For each solve it prints IPOPT's status, how it ended
-(``fatigue_pin.solver.failure_kind``), iterations, time, the worst |1 - (ma + mr + mf)| on the
+(``fatigue_pin.ocp.solver.failure_kind``), iterations, time, the worst |1 - (ma + mr + mf)| on the
 nodes, the elbow flexion capacity at the end, and IPOPT's inertia correction: how many iterations
 needed a Hessian regularisation and its largest size. Converged runs are written to
 ``--out/variant.h5``; the table also goes to ``--out/variant.json`` (solves already in it are
@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.full import solution_to_run, solve_full
-from fatigue_pin.paper import PAPER_REPETITIONS, authors_variant_dict
-from fatigue_pin.results import write_run
-from fatigue_pin.study import Study, parse_changes
+from fatigue_pin.drivers.full import solution_to_run, solve_full
+from fatigue_pin.paper.curl import PAPER_REPETITIONS, authors_variant_dict
+from fatigue_pin.io.results import write_run
+from fatigue_pin.io.study import Study, parse_changes
 
 
 def cases() -> list[tuple[str, float, int]]:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fatigue_pin.forward import run_forward_studies
+from fatigue_pin.paper.forward import run_forward_studies
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,6 +1,6 @@
 """Full-horizon maximum repetitions for the three costs with S = 10 and S = 0 (paper table 2).
 
-Runs ``fatigue_pin.full.max_repetitions`` for every (cost, S), one after the other (each solve
+Runs ``fatigue_pin.drivers.full.max_repetitions`` for every (cost, S), one after the other (each solve
 uses every core), writes one HDF5 file per search into ``--out`` (the search table and the best
 run; written after every N, so an interrupted study resumes where it stopped) and prints every N
 tried and the summary beside the paper's. Usage::
@@ -13,7 +13,7 @@ The default preset is ``authors-code``: the paper's counts come from those value
 cap by default: the search gallops (N = 1, 2, 4, ...) until a failure, then bisects; a failed
 warm start is solved again from rest before it counts. ``--max-wall-time`` bounds one solve; a
 solve stopped by it counts as a failure, reported with IPOPT's status and its kind
-(``fatigue_pin.solver.failure_kind``). ``--max-iter`` bounds it by IPOPT iterations instead,
+(``fatigue_pin.ocp.solver.failure_kind``). ``--max-iter`` bounds it by IPOPT iterations instead,
 which, unlike a wall time, gives the same limit on a loaded machine.
 """
 
@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.paper import COSTS, PAPER_REPETITIONS, PRESETS, Q_INIT, curl_study
-from fatigue_pin.plots import plot_capacity
-from fatigue_pin.study import run_study
+from fatigue_pin.paper.curl import COSTS, PAPER_REPETITIONS, PRESETS, Q_INIT, curl_study
+from fatigue_pin.viz.plots import plot_capacity
+from fatigue_pin.io.study import run_study
 
 
 def main(argv: list[str] | None = None) -> int:

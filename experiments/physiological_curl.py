@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.results import list_runs, read_run
-from fatigue_pin.plots import peak_torques, plot_capacity, plot_fatigue_states, plot_joint_angles
-from fatigue_pin.study import Study, run_study
+from fatigue_pin.io.results import list_runs, read_run
+from fatigue_pin.viz.plots import peak_torques, plot_capacity, plot_fatigue_states, plot_joint_angles
+from fatigue_pin.io.study import Study, run_study
 
 STUDIES = Path(__file__).resolve().parent.parent / "studies"
 

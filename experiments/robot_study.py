@@ -25,10 +25,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from fatigue_pin.kinematics import frame_placement  # noqa: E402
-from fatigue_pin.model import resolve_model  # noqa: E402
-from fatigue_pin.results import read_run  # noqa: E402
-from fatigue_pin.study import Study  # noqa: E402
+from fatigue_pin.robot.kinematics import frame_placement  # noqa: E402
+from fatigue_pin.robot.model import resolve_model  # noqa: E402
+from fatigue_pin.io.results import read_run  # noqa: E402
+from fatigue_pin.io.study import Study  # noqa: E402
 
 
 def cycle_table(run, study: Study) -> list[dict]:

@@ -27,8 +27,8 @@ import argparse
 import contextlib
 from pathlib import Path
 
-import fatigue_pin.transcription as transcription
-from fatigue_pin.study import Study, run_study
+import fatigue_pin.ocp.transcription as transcription
+from fatigue_pin.io.study import Study, run_study
 
 THEIR_SETTINGS = {
     "solver.mu_init": 0.1, "solver.perturb_dec_fact": 1.0 / 3.0, "transcription.scaling": False,

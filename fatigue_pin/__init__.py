@@ -5,7 +5,7 @@ Xia's three-compartment fatigue model with an invariant stabiliser (3CC-S), and 
 problems are written with CasADi Opti and solved over the full horizon or window by window.
 """
 
-from fatigue_pin.model import RobotModel, load_model
+from fatigue_pin.robot.model import RobotModel, load_model
 
 __all__ = ["RobotModel", "load_model"]
 __version__ = "0.1.0"

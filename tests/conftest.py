@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from fatigue_pin.full import OcpBuilder
-from fatigue_pin.model import load_model
-from fatigue_pin.paper import curl_study
+from fatigue_pin.io.results import WINDOW_DTYPE, RunResult, torque_limits_at_cycle_ends
+
+from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.robot.model import load_model
+from fatigue_pin.paper.curl import curl_study
 
 
 def small_curl(horizon: str = "full", cost: str = "fatigue-torque", preset: str = "paper", S: float = 10.0, **kwargs):
@@ -38,3 +41,65 @@ def build(small_problem, small_study):
     """``build(n_cycles, **changes)``: an Ocp of the small curl (interval functions shared)."""
     builder = OcpBuilder(small_problem, small_study.transcription(), small_study.solver())
     return builder
+
+
+def make_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10) -> RunResult:
+    nodes = cycles * n + 1
+    rng = np.random.default_rng(0)
+    mf = np.linspace(0, 0.3, nodes)[:, None] * np.ones((1, 4))
+    return RunResult(
+        name=name,
+        attrs={"horizon": "full", "cost": "torque", "S": 10.0, "converged": True, "n_cycles": cycles},
+        t=np.linspace(0, cycles, nodes),
+        q=rng.normal(size=(nodes, 2)),
+        qdot=rng.normal(size=(nodes, 2)),
+        tau_plus=rng.uniform(0, 50, size=(nodes - 1, 2)),
+        tau_minus=-rng.uniform(0, 50, size=(nodes - 1, 2)),
+        fatigue={"ma": rng.uniform(size=(nodes, 4)), "mr": rng.uniform(size=(nodes, 4)), "mf": mf},
+        cycle_costs=rng.uniform(size=(cycles, 4)),
+        torque_limits=torque_limits_at_cycle_ends(mf, np.array([50, -50, 50, -50]), n),
+        joint_names=("shoulder", "elbow"),
+        actuator_names=("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus"),
+        cost_terms=("posture", "torque_rate", "fatigue", "torque"),
+        cycle_wall_time_s=np.ones(cycles),
+        urdf="<robot name='x'/>",
+    )
+
+
+HALVES = ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")
+TERMS = ("shoulder_angle", "torque_rate", "fatigue", "torque")
+
+
+def make_curl_run(name: str = "full/fatigue_torque", n_cycles: int = 2, n: int = 50, horizon: str = "full",
+             urdf: str = "") -> RunResult:
+    """A synthetic arm26 run: ``n_cycles`` curls of ``n`` intervals (0.02 s each for n = 50), elbow
+    15 -> 150 -> 15 deg, every mf growing linearly-ish (elbow_plus 0 -> 0.8)."""
+    nodes = n_cycles * n + 1
+    t = np.linspace(0.0, n_cycles, nodes)
+    phase = 2 * np.pi * t
+    elbow = np.radians(15) + np.radians(135) * 0.5 * (1 - np.cos(phase))
+    shoulder = 0.07 + 0.2 * np.sin(phase) * t / n_cycles
+    q = np.column_stack([shoulder, elbow])
+    qdot = np.gradient(q, t, axis=0)
+    tau_plus = np.column_stack([10 + 5 * np.sin(phase[:-1]), 20 + 10 * np.sin(phase[:-1])])
+    tau_minus = -np.column_stack([2 + np.cos(phase[:-1]), 3 + np.cos(phase[:-1])])
+    frac = t / t[-1]
+    mf = np.column_stack([0.4 * frac, 0.05 * frac, 0.8 * frac**1.5, 0.1 * frac])
+    ma = np.column_stack([0.2 + 0.1 * np.sin(phase), 0.04 + 0 * t, 0.4 + 0.2 * np.sin(phase), 0.06 + 0 * t])
+    mr = 1 - ma - mf
+    costs = np.array([[1e2 * (c + 1), 0.1 * (c + 1), 10.0 * (c + 1) ** 2, 1e3] for c in range(n_cycles)])
+    limits = np.array([50.0, -50.0, 50.0, -50.0])
+    attrs = dict(horizon=horizon, cost="fatigue+torque", preset="test", S=10.0, F=0.456, R=0.0094, LD=10.0,
+                 LR=10.0, n_cycles=n_cycles, converged=True, status="Solve_Succeeded", wall_time_s=12.0,
+                 build_time_s=1.0, iterations=100, solver="ipopt", tau_limits=limits)
+    windows = None
+    if horizon == "sliding":
+        n_win = max(n_cycles - 2, 1)
+        windows = np.array([(i, i, b"Solve_Succeeded", True, 40 + i, 3.0 + i, 1.0) for i in range(n_win)],
+                           dtype=WINDOW_DTYPE)
+    return RunResult(
+        name=name, attrs=attrs, t=t, q=q, qdot=qdot, tau_plus=tau_plus, tau_minus=tau_minus, fatigue={"ma": ma, "mr": mr, "mf": mf},
+        cycle_costs=costs, torque_limits=(1 - mf[n::n]) * limits, joint_names=("shoulder", "elbow"),
+        actuator_names=HALVES, cost_terms=TERMS, cycle_wall_time_s=np.full(n_cycles, 6.0), windows=windows,
+        urdf=urdf,
+    )

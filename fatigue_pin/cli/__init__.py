@@ -1,0 +1,3 @@
+from fatigue_pin.cli.main import main
+
+__all__ = ["main"]

@@ -1,0 +1,322 @@
+"""Sliding-horizon (cyclic NMPC) solves: a window of K cycles advancing A cycles at a time.
+
+Paper section 3 / SPEC section 4. One :class:`~fatigue_pin.ocp.transcription.Ocp` of K cycles is built
+(and compiled) once; every window re-solves it with new parameters:
+
+* its initial state is the previous window's state at node A * n (n intervals per cycle);
+* its final q and qdot are bounded to that initial state +- ``end_tolerance`` (1 %) of their range;
+* its initial guess is the previous window's cycle after the advance point (cycle A) copied into
+  every cycle, the fatigue states integrated forward from the copied controls so they are
+  continuous.
+
+The first A cycles of every converged window are kept; the last converged window keeps all K.
+The run stops at the first window that fails, or once ``max_cycles`` cycles are kept.
+Repetitions = A * (converged windows - 1) + K.
+
+After every window the stitched trajectory (kept cycles followed by the whole last converged
+window) and the window table are written to the HDF5 file, atomically; ``resume=True`` reads
+them back and continues with the next window, ending with the same result as an uninterrupted
+run (the guess of a window only depends on the previous window's stored solution).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+import json
+from typing import Any
+
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.drivers.full import OcpBuilder, run_attributes, to_run_result
+from fatigue_pin.ocp.problem import Problem
+from fatigue_pin.io.results import FAILED_WINDOW_SUFFIX, WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
+from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.transcription import Transcription
+
+from fatigue_pin.core.progress import Progress, as_reporter
+
+
+@dataclass(frozen=True)
+class SlidingSettings:
+    """Settings of a sliding-horizon run.
+
+    Attributes:
+        window: cycles per window (K, paper: 3).
+        advance: cycles the window advances (A, paper: 1); 1 <= A < K.
+        max_cycles: stop once this many cycles are kept (``None``: until a window fails).
+        end_tolerance: end bounds of q and qdot, fraction of their range (paper: 0.01).
+        failure_iterations: IPOPT iteration limit of a window after the first ``warmup`` windows,
+            as a multiple of the median iterations of the converged windows so far (a failing
+            window is then recognised within about this factor of a normal window's cost).
+            ``None`` keeps the solver's ``max_iter`` for every window (the paper's 3000).
+        min_iterations: the iteration limit is never below this.
+        warmup: windows solved with the solver's own ``max_iter`` before the limit applies.
+        guess_fatigue: how a window's guess gets its fatigue states: ``integrate`` (from the
+            window's initial state under the copied controls, so the guess has no fatigue gaps) or
+            ``copy`` (copied with the rest of the previous window's second cycle, as the authors'
+            code does: the guess jumps back at every cycle boundary).
+    """
+
+    window: int = 3
+    advance: int = 1
+    max_cycles: int | None = None
+    end_tolerance: float = 0.01
+    failure_iterations: float | None = 10.0
+    min_iterations: int = 200
+    warmup: int = 3
+    guess_fatigue: str = "integrate"
+
+    def __post_init__(self) -> None:
+        if self.guess_fatigue not in ("integrate", "copy"):
+            raise ParameterError(f"SlidingSettings.guess_fatigue = {self.guess_fatigue!r}: expected 'integrate' or 'copy'")
+        if not (isinstance(self.window, int) and self.window >= 1):
+            raise ParameterError(f"SlidingSettings.window = {self.window!r}: expected an integer number of cycles >= 1")
+        if not (isinstance(self.advance, int) and 1 <= self.advance <= self.window):
+            raise ParameterError(f"SlidingSettings.advance = {self.advance!r}: expected an integer in [1, window = {self.window}]")
+        if self.max_cycles is not None and self.max_cycles < self.window:
+            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected None or >= window = {self.window}")
+        if self.failure_iterations is not None and self.failure_iterations < 1:
+            raise ParameterError(f"SlidingSettings.failure_iterations = {self.failure_iterations!r}: expected None or >= 1")
+
+
+@dataclass
+class _State:
+    """What the next window needs: the stitched run so far and the last converged window."""
+
+    x: np.ndarray          # stitched states (nodes, nx), ends with the whole last converged window
+    u: np.ndarray          # stitched controls (intervals, nu)
+    costs: np.ndarray      # (cycles, terms)
+    cycle_wall: np.ndarray  # (cycles,)
+    windows: list[tuple]   # rows of WINDOW_DTYPE
+    done: bool             # a window failed or max_cycles reached
+
+    @property
+    def n_cycles(self) -> int:
+        return self.costs.shape[0]
+
+
+def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
+    """Cycles achieved by a run whose first ``converged_windows`` windows converged."""
+    if converged_windows <= 0:
+        return 0
+    return settings.advance * (converged_windows - 1) + settings.window
+
+
+def failed_window_name(name: str) -> str:
+    """Run name of the failed window of the sliding run ``name`` (its last IPOPT iterate)."""
+    return f"{name}{FAILED_WINDOW_SUFFIX}"
+
+
+class SlidingHorizon:
+    """A sliding-horizon run of a problem.
+
+    Args:
+        problem: the problem (its initial state starts the first window).
+        sliding: window settings.
+        transcription, solver: discretisation and IPOPT settings.
+        guess: initial guess of the first window (``rest`` or ``physical``).
+        study: the TOML text of the study, stored with the run.
+        labels: attributes stored with the run (e.g. the paper's cost, S and preset).
+        progress: where building (a compile) reports itself; default quiet.
+    """
+
+    def __init__(self, problem: Problem, sliding: SlidingSettings | None = None, transcription: Transcription | None = None,
+                 solver: SolverOptions | None = None, guess: str = "rest", study: str = "",
+                 labels: dict[str, Any] | None = None, progress: Progress = None) -> None:
+        self.sliding = sliding or SlidingSettings()
+        self.problem = problem
+        self.solver = solver or SolverOptions()
+        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, self.sliding.end_tolerance)
+        self.model = problem.model
+        self.study = study
+        self.labels = dict(labels or {})
+
+    def fingerprint(self) -> str:
+        """What a resumed run must share with the stored one: weights, fatigue parameters, task,
+        window settings (not ``max_cycles``), transcription and the initial state."""
+        s = self.sliding
+        data = {
+            "weights": dict(zip(self.ocp.cost_terms, self.problem.weights.tolist())),
+            "fatigue": {h.name: [h.params.kind, *h.params.as_vector().tolist()] for h in self.problem.actuators.halves},
+            "task": repr(self.problem.task),
+            "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue],
+            "transcription": repr(self.ocp.transcription),
+            "x_init": self.problem.initial_state().tolist(),
+            "model": [self.model.name, repr(self.model.payload)],
+        }
+        return json.dumps(data, sort_keys=True)
+
+    # -- window mechanics ------------------------------------------------------------------------
+
+    @property
+    def _n(self) -> int:
+        return self.ocp.task.intervals_per_cycle
+
+    def window_guess(self, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Guess of a window from the previous window's states (K n + 1, nx) and controls (K n, nu):
+        its cycle A copied into every cycle, fatigue states integrated from ``x_init``."""
+        n, A, K = self._n, self.sliding.advance, self.sliding.window
+        cyc = min(A, K - 1)
+        u_cycle = u_prev[cyc * n : (cyc + 1) * n]
+        x_cycle = x_prev[cyc * n : (cyc + 1) * n]
+        u = np.tile(u_cycle, (K, 1))
+        xs = np.vstack([np.tile(x_cycle, (K, 1)), x_prev[(cyc + 1) * n][None, :]])
+        if self.sliding.guess_fatigue == "copy":
+            return xs, u
+        L = self.ocp.layout
+        return self.ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u), u
+
+    def _iteration_limit(self, state: _State) -> int | None:
+        """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
+        iterations of the first ``warmup`` converged windows (fixed once known, so a resumed run
+        uses the same limit), at least ``min_iterations``."""
+        s = self.sliding
+        iters = [row[4] for row in state.windows if row[3]][: s.warmup]
+        if s.failure_iterations is None or len(iters) < s.warmup:
+            return None
+        return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+
+    def _failed_window(self, sol: Any, first_cycle: int, name: str) -> RunResult:
+        """The last iterate of a failed window as a run (times from the window's first cycle)."""
+        ocp = self.ocp
+        attrs = run_attributes(ocp, "sliding-failed-window", self.labels)
+        attrs.update(n_cycles=self.sliding.window, first_cycle=first_cycle, converged=False, status=sol.status,
+                     kind=sol.kind, iterations=sol.iterations, wall_time_s=sol.wall_time_s)
+        t = first_cycle * ocp.task.cycle_duration + np.arange(sol.x.shape[0]) * ocp.task.dt
+        return to_run_result(ocp, t, sol.x, sol.u, sol.cycle_costs, name, attrs, np.zeros(self.sliding.window), study=self.study)
+
+    def _run_result(self, state: _State, name: str, build_time: float) -> RunResult:
+        ocp = self.ocp
+        attrs = run_attributes(ocp, "sliding", self.labels)
+        attrs["fingerprint"] = self.fingerprint()
+        table = np.array(state.windows, dtype=WINDOW_DTYPE)
+        converged = int(table["converged"].sum()) if table.size else 0
+        attrs.update(
+            n_cycles=state.n_cycles,
+            window=self.sliding.window,
+            advance=self.sliding.advance,
+            max_cycles=-1 if self.sliding.max_cycles is None else self.sliding.max_cycles,
+            repetitions=state.n_cycles,
+            converged=converged > 0,
+            finished=state.done,
+            status=str(table["status"][-1].decode()) if table.size else "not started",
+            wall_time_s=float(table["wall_time_s"].sum()) if table.size else 0.0,
+            build_time_s=build_time,
+            compile_time_s=ocp.compile_time_s,
+            iterations=int(table["iterations"].sum()) if table.size else 0,
+            converged_windows=converged,
+        )
+        t = np.arange(state.x.shape[0]) * ocp.task.dt
+        return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table, study=self.study)
+
+    def _restore(self, path: Path, name: str) -> _State | None:
+        if not path.exists() or name not in list_runs(path):
+            return None
+        run = read_run(path, name)
+        if run.windows is None:
+            raise ResultFileError(f"run {name!r} in {str(path)!r} has no window table; it is not a sliding-horizon run")
+        if run.attrs.get("fingerprint") != self.fingerprint():
+            stored = json.loads(run.attrs.get("fingerprint") or "{}")
+            mine = json.loads(self.fingerprint())
+            key = next((k for k in mine if stored.get(k) != mine[k]), "settings")
+            raise ResultFileError(f"cannot resume run {name!r} in {str(path)!r}: its {key} differ from this run's "
+                                  f"({stored.get(key)!r} stored, {mine.get(key)!r} now)")
+        x = self.ocp.layout.assemble(run.q, run.qdot, run.fatigue)
+        u = np.hstack([run.tau_plus, run.tau_minus])
+        windows = [tuple(row) for row in run.windows.tolist()]
+        return _State(x, u, run.cycle_costs, run.cycle_wall_time_s, windows, bool(run.attrs.get("finished", False)))
+
+    # -- the run ---------------------------------------------------------------------------------
+
+    def run(
+        self,
+        out: str | Path | None = None,
+        name: str | None = None,
+        resume: bool = False,
+        progress: Progress = None,
+        stop_after: int | None = None,
+    ) -> RunResult:
+        """Solve windows until one fails or ``max_cycles`` cycles are kept.
+
+        Args:
+            out: HDF5 file that receives the run after every window (``None``: memory only).
+            name: run group name (default ``sliding/run``).
+            resume: continue the run stored under ``name`` in ``out``.
+            progress: a :class:`~fatigue_pin.core.progress.Reporter` (one line per window and a bar over
+                the cycles kept), or a callable receiving the lines; default quiet.
+            stop_after: solve at most this many windows in this call (for tests and batching).
+
+        Returns:
+            The stitched :class:`RunResult` (also in ``out``).
+        """
+        name = name or "sliding/run"
+        path = Path(out) if out is not None else None
+        n, A, K = self._n, self.sliding.advance, self.sliding.window
+        ocp = self.ocp
+        state = self._restore(path, name) if (resume and path is not None) else None
+        rep = as_reporter(progress)
+        if resume and state is not None:
+            rep.line(f"resuming {name!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
+        build_time = ocp.build_time_s
+        solved = 0
+        fatigued_rows = [ocp.layout.nq + ocp.layout.nv + r for r in ocp.actuators.fatigued_rows()]
+        bar = rep.bar(self.sliding.max_cycles, "cycles kept", "cycle")
+        if state is not None:
+            bar.update(state.n_cycles)
+        while state is None or not state.done:
+            if stop_after is not None and solved >= stop_after:
+                break
+            if state is None:
+                x_init = ocp.initial_state()
+                guess = ocp.initial_guess(x_init)
+                first_cycle = 0
+            else:
+                first_cycle = state.n_cycles - K + A
+                x_prev = state.x[-(K * n + 1):]
+                u_prev = state.u[-(K * n):]
+                x_init = x_prev[A * n].copy()
+                guess = self.window_guess(x_init, x_prev, u_prev)
+            limit = self._iteration_limit(state) if state is not None else None
+            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit)
+            solved += 1
+            index = len(state.windows) if state is not None else 0
+            row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
+            wall = np.zeros(K)  # a window's solve time goes to the A cycles it keeps
+            wall[:A] = sol.wall_time_s / A
+            mf_end = sol.x[A * n, fatigued_rows]
+            rep.line(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
+                     f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
+                     f"{'' if limit is None else f' (limit {limit} it)'}  max mf {mf_end.max():.3f}")
+            before = state.n_cycles if state is not None else 0
+            if state is None:
+                if not sol.success:
+                    state = _State(np.zeros((0, ocp.layout.nx)), np.zeros((0, ocp.layout.nu)), np.zeros((0, sol.cycle_costs.shape[1])),
+                                   np.zeros(0), [row], True)
+                else:
+                    state = _State(sol.x, sol.u, sol.cycle_costs, wall, [row], False)
+            elif not sol.success:
+                state.windows.append(row)
+                state.done = True
+            else:
+                keep_nodes = state.x.shape[0] - (K - A) * n  # drop the previous window's unkept tail
+                keep_int = state.u.shape[0] - (K - A) * n
+                keep_cyc = state.n_cycles - (K - A)
+                state.x = np.vstack([state.x[: keep_nodes - 1], sol.x])
+                state.u = np.vstack([state.u[:keep_int], sol.u])
+                state.costs = np.vstack([state.costs[:keep_cyc], sol.cycle_costs])
+                state.cycle_wall = np.concatenate([state.cycle_wall[:keep_cyc], wall])
+                state.windows.append(row)
+            if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
+                state.done = True
+            if path is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
+                write_run(path, self._failed_window(sol, first_cycle, failed_window_name(name)))
+            if path is not None:
+                write_run(path, self._run_result(state, name, build_time))
+            bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
+        bar.close()
+        if state is None:
+            raise RuntimeError("no window was solved")
+        return self._run_result(state, name, build_time)

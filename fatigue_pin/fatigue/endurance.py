@@ -1,0 +1,596 @@
+"""Maximum endurance time (ET) of isometric tasks predicted by a fatigue model.
+
+**Definition.** A task asks an actuator for a target load ``TL`` (sustained, or during the "on"
+part of each cycle of an intermittent task). The actuator can hold ``TL`` as long as its
+capacity, the active plus resting fractions ``ma + mr``, is at least ``TL``: in Xia's controller
+this is exactly the switch from branch 1 (``mr >= TL - ma``, ``ma`` tracks ``TL``) to branch 2
+(``mr < TL - ma``, ``ma`` can only fall). The **endurance time** is the first time at which
+``ma + mr < TL`` while the task asks for ``TL``, counted from the start of the task from a rested
+actuator (including the rest periods of an intermittent task). It is found with ``solve_ivp``
+and a terminal event on ``ma + mr - TL``; any fatigue model with states ``ma`` and ``mr`` works
+(Xia's 3CC/3CC-S/3CC-r, Michaud's model).
+
+**Closed forms** (Xia's 3CC with instant activation, ``LD, LR -> infinity``): while holding,
+``ma = TL`` and ``dmf/dt = F TL - R mf``, so ``mf(t) = (F TL / R)(1 - exp(-R t))`` and the
+capacity ``1 - mf`` reaches ``TL`` at
+
+    ET = -ln(1 - R (1 - TL) / (F TL)) / R        (inf where the argument of ln is <= 0)
+
+For an intermittent task (duty cycle ``d``, cycle ``T``), ``mf`` follows the same exponential
+towards ``F TL / R`` during each "on" part and decays like ``exp(-r R t)`` during each rest
+(3CC-r: Looft et al.'s rest multiplier ``r``); :func:`intermittent_et_closed_form` solves this
+cycle recursion exactly. Finite ``LD`` holds ``ma`` at ``TL LD / (LD + F)`` instead of ``TL`` and
+the event fires when ``mr = F TL / (LD + F)`` rather than 0; both shift ET by a relative amount of
+order ``F / LD`` (about 1e-3 for LD = 10), see ``docs/fatigue.md`` for measured values.
+
+**Empirical curves.** :data:`FREY_LAW_AVIN_2010`: the pooled power models ``ET = b0 * TL^b1``
+(s, TL as a fraction of maximum) of Frey-Law & Avin (2010), Ergonomics 53:109-129,
+doi:10.1080/00140130903389068, per joint region; the 3CC parameters of Frey-Law, Looft & Heitsman
+(2012) were fitted to these curves. :func:`compare_frey_law_avin` sets them side by side.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from fatigue_pin.core.errors import FatiguePinError, ParameterError
+from fatigue_pin.fatigue.models import FatigueModel, XiaFatigue
+
+__all__ = [
+    "FREY_LAW_AVIN_2010",
+    "FREY_LAW_AVIN_SOURCE",
+    "DEFAULT_LOADS",
+    "OutputLocationError",
+    "sustained_et_closed_form",
+    "intermittent_et_closed_form",
+    "power_model_et",
+    "endurance_time",
+    "EnduranceTable",
+    "endurance_table",
+    "compare_frey_law_avin",
+    "format_table",
+    "format_comparison",
+    "write_h5",
+    "plot_endurance",
+    "check_output_dir",
+    "run_endurance",
+]
+
+#: Frey-Law & Avin (2010) pooled power models ``ET = b0 * TL^b1`` (ET in s, TL in (0, 1]): joint -> (b0, b1).
+FREY_LAW_AVIN_2010: dict[str, tuple[float, float]] = {
+    "general": (21.92, -1.98),
+    "ankle": (34.71, -2.06),
+    "trunk": (22.69, -2.27),
+    "elbow": (17.98, -2.21),
+    "hand": (33.55, -1.61),
+    "knee": (19.38, -1.88),
+    "shoulder": (14.86, -1.83),
+}
+FREY_LAW_AVIN_2010["grip"] = FREY_LAW_AVIN_2010["hand"]
+
+FREY_LAW_AVIN_SOURCE = (
+    "Frey-Law & Avin (2010), Endurance time is joint-specific: a modelling and meta-analysis investigation, "
+    "Ergonomics 53:109-129, doi:10.1080/00140130903389068, pooled power models ET = b0 * TL^b1"
+)
+
+#: Target loads of the tables: 0.1, 0.2, ..., 0.9.
+DEFAULT_LOADS: tuple[float, ...] = tuple(round(0.1 * k, 1) for k in range(1, 10))
+
+
+class OutputLocationError(FatiguePinError, ValueError):
+    """An output path that cannot be written (a file where a folder is expected, no permission, ...)."""
+
+
+# -- closed forms ------------------------------------------------------------------------------------
+
+
+def _check_load(TL: float, who: str) -> float:
+    x = float(TL)
+    if not (math.isfinite(x) and 0.0 < x <= 1.0):
+        raise ParameterError(f"{who}: target load TL = {TL!r}: expected a fraction in (0, 1]")
+    return x
+
+
+def sustained_et_closed_form(F: float, R: float, TL: float | np.ndarray) -> float | np.ndarray:
+    """Endurance time (s) of a sustained contraction at ``TL`` for Xia's 3CC with instant activation.
+
+    ``ET = -ln(1 - R (1 - TL) / (F TL)) / R``; ``inf`` where the argument is <= 0 (the fatigued
+    fraction settles below ``1 - TL``); ``(1 - TL) / (F TL)`` for ``R = 0``; ``inf`` for ``F = 0``.
+    """
+    tl = np.asarray(TL, dtype=float)
+    F, R = float(F), float(R)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if F <= 0.0:
+            et = np.full_like(tl, np.inf)
+        elif R == 0.0:
+            et = (1.0 - tl) / (F * tl)
+        else:
+            arg = 1.0 - R * (1.0 - tl) / (F * tl)
+            et = np.where(arg > 0.0, -np.log1p(-R * (1.0 - tl) / (F * tl)) / R, np.inf)
+    return float(et) if et.ndim == 0 else et
+
+
+def intermittent_et_closed_form(
+    F: float, R: float, TL: float, duty_cycle: float = 1.0, cycle_s: float | None = None, r: float = 1.0
+) -> float:
+    """Endurance time (s, elapsed, rests included) of an intermittent task for 3CC-r with instant activation.
+
+    Each cycle of length ``cycle_s`` starts with ``duty_cycle * cycle_s`` at ``TL`` ("on"), then rests
+    at 0. With ``A = F TL / R``: on, ``mf -> A + (mf - A) exp(-R t)``; at rest, ``mf -> mf exp(-r R t)``.
+    The start-of-cycle values obey ``s_{k+1} = a s_k + b`` (``a = exp(-R d T - r R (1-d) T)``), so the
+    first failing cycle and the time within it are solved exactly. ``duty_cycle = 1`` gives
+    :func:`sustained_et_closed_form`.
+    """
+    TL = _check_load(TL, "intermittent_et_closed_form")
+    d = float(duty_cycle)
+    if not (math.isfinite(d) and 0.0 < d <= 1.0):
+        raise ParameterError(f"intermittent_et_closed_form: duty_cycle = {duty_cycle!r}: expected a fraction in (0, 1]")
+    if d == 1.0:
+        return sustained_et_closed_form(F, R, TL)
+    if cycle_s is None or not (math.isfinite(float(cycle_s)) and float(cycle_s) > 0.0):
+        raise ParameterError(f"intermittent_et_closed_form: cycle_s = {cycle_s!r}: expected a cycle length > 0 (s)")
+    T = float(cycle_s)
+    F, R, r = float(F), float(R), float(r)
+    L = 1.0 - TL  # failure when mf >= L during an "on" part
+    if F <= 0.0:
+        return math.inf
+    if R <= 0.0:
+        # No recovery: mf grows by F TL d T per cycle.
+        inc = F * TL * d * T  # growth of mf per "on" part
+        k = max(0, math.ceil(L / inc) - 1)  # the "on" part in which mf reaches L
+        while k > 0 and k * inc >= L:
+            k -= 1
+        return k * T + (L - k * inc) / (F * TL)
+    A = F * TL / R
+    if A <= L:
+        return math.inf
+    e_on = math.exp(-R * d * T)
+    e_off = math.exp(-r * R * (1.0 - d) * T)
+    a = e_on * e_off
+    b = e_off * A * (1.0 - e_on)
+    s_star = b / (1.0 - a)
+    # Cycle k fails iff its on-end value A + (s_k - A) e_on >= L, i.e. s_k >= s_crit.
+    s_crit = (L - A * (1.0 - e_on)) / e_on
+    s0 = 0.0
+    if s0 >= s_crit:
+        k = 0
+    elif s_star <= s_crit:
+        return math.inf
+    else:
+        k = max(0, math.ceil(math.log((s_crit - s_star) / (s0 - s_star)) / math.log(a)))
+        # Guard the ceil against round-off.
+        while k > 0 and s_star + (s0 - s_star) * a ** (k - 1) >= s_crit:
+            k -= 1
+        while s_star + (s0 - s_star) * a**k < s_crit:
+            k += 1
+    s_k = s_star + (s0 - s_star) * a**k
+    t_in = -math.log((L - A) / (s_k - A)) / R if s_k < L else 0.0
+    return k * T + min(t_in, d * T)
+
+
+def power_model_et(joint: str, TL: float | np.ndarray) -> float | np.ndarray:
+    """Frey-Law & Avin (2010) pooled power model ``ET = b0 * TL^b1`` (s) of ``joint``."""
+    if joint not in FREY_LAW_AVIN_2010:
+        raise ParameterError(f"joint {joint!r} has no Frey-Law & Avin (2010) power model; expected one of {sorted(FREY_LAW_AVIN_2010)}")
+    b0, b1 = FREY_LAW_AVIN_2010[joint]
+    et = b0 * np.asarray(TL, dtype=float) ** b1
+    return float(et) if et.ndim == 0 else et
+
+
+# -- simulation ---------------------------------------------------------------------------------------
+
+
+def _fixed_functions(model: FatigueModel, TL: float):
+    """Numeric ``f(y)`` and Jacobian ``J(y)`` of the model at constant ``TL``."""
+    m = ca.SX.sym("m", model.n_states())
+    dm = model.rhs()(m, TL, ca.DM(model.as_vector()))
+    f = ca.Function("f", [m], [dm])
+    J = ca.Function("J", [m], [ca.jacobian(dm, m)])
+    return (lambda t, y: f(y).full().ravel()), (lambda t, y: J(y).full())
+
+
+def endurance_time(
+    model: FatigueModel,
+    TL: float,
+    duty_cycle: float = 1.0,
+    cycle_s: float | None = None,
+    t_max: float = 1e5,
+    method: str = "LSODA",
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    steady_stop: bool = True,
+) -> float:
+    """Endurance time (s) of a task at target load ``TL`` by forward simulation of ``model``.
+
+    The actuator starts rested (``model.rest_state()``). Sustained (``duty_cycle = 1``): ``TL`` is
+    held from t = 0. Intermittent: each cycle of ``cycle_s`` seconds asks for ``TL`` during its
+    first ``duty_cycle * cycle_s`` seconds and 0 during the rest. The result is the first time at
+    which ``ma + mr < TL`` during an "on" part (see the module docstring), or ``inf`` if that does
+    not happen before ``t_max``. With ``steady_stop``, an intermittent task also returns ``inf``
+    once the end-of-"on" margins ``ma + mr - TL`` of successive cycles converge geometrically to a
+    limit above 1e-4 (Aitken extrapolation), instead of simulating up to ``t_max``.
+
+    Raises:
+        ParameterError: a bad load, duty cycle or cycle length, or a model without ``ma``/``mr``.
+    """
+    TL = _check_load(TL, "endurance_time")
+    d = float(duty_cycle)
+    if not (math.isfinite(d) and 0.0 < d <= 1.0):
+        raise ParameterError(f"endurance_time: duty_cycle = {duty_cycle!r}: expected a fraction in (0, 1]")
+    if d < 1.0 and (cycle_s is None or not (math.isfinite(float(cycle_s)) and float(cycle_s) > 0.0)):
+        raise ParameterError(f"endurance_time: cycle_s = {cycle_s!r}: expected a cycle length > 0 (s) for duty_cycle {d}")
+    ia, ir = model.state_index("ma"), model.state_index("mr")
+
+    def event(t: float, y: np.ndarray) -> float:
+        return y[ia] + y[ir] - TL
+
+    event.terminal = True
+    event.direction = -1
+
+    f_on, J_on = _fixed_functions(model, TL)
+    opts = dict(method=method, rtol=rtol, atol=atol, events=event)
+    if method in ("Radau", "BDF", "LSODA"):
+        opts["jac"] = J_on
+    y = model.rest_state().astype(float)
+    if d == 1.0:
+        out = solve_ivp(f_on, (0.0, float(t_max)), y, **opts)
+        _check_solve(out, model, TL)
+        return float(out.t_events[0][0]) if out.t_events[0].size else math.inf
+
+    T = float(cycle_s)
+    f_off, J_off = _fixed_functions(model, 0.0)
+
+    def ma_negative(t: float, y: np.ndarray) -> float:
+        return y[ia]
+
+    ma_negative.terminal = True
+    ma_negative.direction = -1
+    off_opts = dict(method=method, rtol=rtol, atol=atol, events=ma_negative)
+    if method in ("Radau", "BDF", "LSODA"):
+        off_opts["jac"] = J_off
+    t0 = 0.0
+    margins: list[float] = []
+    while t0 < t_max:
+        t_on_end = min(t0 + d * T, t_max)
+        out = solve_ivp(f_on, (t0, t_on_end), y, **opts)
+        _check_solve(out, model, TL)
+        if out.t_events[0].size:
+            return float(out.t_events[0][0])
+        y = out.y[:, -1]
+        if t_on_end >= t_max:
+            break
+        margins.append(float(y[ia] + y[ir] - TL))
+        if steady_stop and _settles_above(margins):
+            return math.inf
+        y = _rest(f_off, off_opts, y, t_on_end, t0 + T, ia, model)
+        t0 += T
+    return math.inf
+
+
+def _rest(f_off, off_opts: dict, y: np.ndarray, t_a: float, t_b: float, ia: int, model: FatigueModel) -> np.ndarray:
+    """Integrate a rest (TL = 0) from ``t_a`` to ``t_b``. ``ma`` decays to 0 and never crosses it in
+    the exact solution; when the integrator's round-off takes it below 0, it is set to 0 (a change
+    below ``atol``), where it stays exactly. Without this, Xia's 3CC-r switch ``R' = r R while
+    ma >= TL`` would flicker between ``r R`` and ``R`` with the sign of the round-off."""
+    out = solve_ivp(f_off, (t_a, t_b), y, **off_opts)
+    _check_solve(out, model, 0.0)
+    if not out.t_events[0].size or out.t_events[0][0] >= t_b:
+        return out.y[:, -1].copy()
+    # ma = 0 with TL = 0 is an equilibrium of ma (C = 0, F ma = 0): integrate the rest of the phase
+    # from there without the event (a zero-to-zero "crossing" would fire it again at once).
+    y = out.y_events[0][0].copy()
+    y[ia] = 0.0
+    t_a = float(out.t_events[0][0])
+    opts = {k: v for k, v in off_opts.items() if k != "events"}
+    out = solve_ivp(f_off, (t_a, t_b), y, **opts)
+    _check_solve(out, model, 0.0)
+    return out.y[:, -1].copy()
+
+
+def _settles_above(margins: list[float], tol: float = 1e-4) -> bool:
+    """Whether the end-of-"on" margins ``ma + mr - TL`` of successive cycles converge (geometrically,
+    Aitken's extrapolation agreeing over two consecutive estimates) to a limit above ``tol``."""
+    if len(margins) < 5:
+        return False
+    limits = []
+    for k in (len(margins) - 1, len(margins) - 2):
+        d1, d0 = margins[k] - margins[k - 1], margins[k - 1] - margins[k - 2]
+        if abs(d1) < 1e-13 and abs(d0) < 1e-13:
+            limits.append(margins[k])
+            continue
+        if d0 == 0.0:
+            return False
+        q = d1 / d0
+        if not 0.0 < q < 0.999:
+            return False
+        limits.append(margins[k] + d1 * q / (1.0 - q))
+    return min(limits) > tol and abs(limits[0] - limits[1]) < 0.1 * tol
+
+
+def _check_solve(out, model: FatigueModel, TL: float) -> None:
+    if not out.success:
+        raise FatiguePinError(f"endurance simulation of {model!r} at TL = {TL} failed: {out.message}")
+
+
+# -- tables -------------------------------------------------------------------------------------------
+
+
+@dataclass
+class EnduranceTable:
+    """Endurance times of one model over target loads.
+
+    Attributes:
+        name: a label (e.g. the preset name).
+        model: the fatigue model simulated.
+        loads: target loads, shape (n,).
+        et_sim: simulated endurance times (s), shape (n,) (``inf``: none before ``t_max``).
+        et_closed: closed form of Xia's 3CC-r with instant activation and the model's F, R, r
+            (s), shape (n,); NaN for models without a closed form.
+        joint: the joint whose Frey-Law & Avin (2010) power model is compared, or None.
+        et_power: that power model's endurance times (s), shape (n,), NaN without a joint.
+        duty_cycle, cycle_s: the task (1, None: sustained).
+        source: where the parameters come from.
+    """
+
+    name: str
+    model: FatigueModel
+    loads: np.ndarray
+    et_sim: np.ndarray
+    et_closed: np.ndarray
+    joint: str | None = None
+    et_power: np.ndarray = field(default_factory=lambda: np.array([]))
+    duty_cycle: float = 1.0
+    cycle_s: float | None = None
+    source: str = ""
+
+    @property
+    def rel_error_closed(self) -> np.ndarray:
+        """``et_sim / et_closed - 1`` (NaN where either is infinite or missing)."""
+        return _rel(self.et_sim, self.et_closed)
+
+    @property
+    def rel_error_power(self) -> np.ndarray:
+        """``et_closed / et_power - 1`` (model's closed form vs the empirical curve), NaN without a joint."""
+        ref = self.et_closed if np.isfinite(self.et_closed).any() else self.et_sim
+        return _rel(ref, self.et_power) if self.et_power.size else np.full(self.loads.shape, np.nan)
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.asarray(a, float) / np.asarray(b, float) - 1.0
+    return np.where(np.isfinite(a) & np.isfinite(b), out, np.nan)
+
+
+def endurance_table(
+    model: FatigueModel,
+    loads: Sequence[float] = DEFAULT_LOADS,
+    duty_cycle: float = 1.0,
+    cycle_s: float | None = None,
+    name: str = "",
+    joint: str | None = None,
+    source: str = "",
+    **simulate_options: object,
+) -> EnduranceTable:
+    """Simulated and closed-form endurance times of ``model`` at each load (see :func:`endurance_time`)."""
+    tl = np.array([_check_load(x, "endurance_table") for x in loads])
+    et_sim = np.array([endurance_time(model, x, duty_cycle, cycle_s, **simulate_options) for x in tl])
+    if isinstance(model, XiaFatigue):
+        et_closed = np.array([intermittent_et_closed_form(model.F, model.R, x, duty_cycle, cycle_s, model.r) for x in tl])
+    else:
+        et_closed = np.full(tl.shape, np.nan)
+    et_power = power_model_et(joint, tl) if joint is not None and duty_cycle == 1.0 else np.array([])
+    return EnduranceTable(name or model.kind, model, tl, et_sim, et_closed, joint, np.asarray(et_power, float),
+                          float(duty_cycle), None if cycle_s is None else float(cycle_s), source)
+
+
+def compare_frey_law_avin(loads: Sequence[float] = DEFAULT_LOADS, simulate: bool = False) -> list[EnduranceTable]:
+    """For every joint of Frey-Law, Looft & Heitsman (2012): the 3CC endurance times with the joint's
+    F and R beside Frey-Law & Avin (2010)'s power model (sustained tasks). ``simulate=True`` also
+    runs the ODE (LD = LR = 10); otherwise ``et_sim`` holds the closed form."""
+    from fatigue_pin.fatigue.presets import FREY_LAW_2012_JOINTS, preset, preset_source
+
+    out = []
+    for joint in FREY_LAW_2012_JOINTS:
+        name = f"frey-law-2012/{joint}"
+        model = preset(name)
+        tl = np.asarray(loads, dtype=float)
+        if simulate:
+            tab = endurance_table(model, tl, name=name, joint=joint, source=preset_source(name))
+        else:
+            closed = sustained_et_closed_form(model.F, model.R, tl)
+            tab = EnduranceTable(name, model, tl, closed.copy(), closed, joint, power_model_et(joint, tl), 1.0, None,
+                                 preset_source(name))
+        out.append(tab)
+    return out
+
+
+def _fmt(x: float) -> str:
+    if not np.isfinite(x):
+        return "inf" if x == np.inf else "-"
+    return f"{x:.1f}"
+
+
+def _pct(x: float) -> str:
+    return "-" if not np.isfinite(x) else f"{100 * x:+.2f} %"
+
+
+def format_table(tab: EnduranceTable) -> str:
+    """The table as Markdown: TL, simulated ET, closed form, error, and the power model if any."""
+    task = "sustained" if tab.duty_cycle == 1.0 else f"duty cycle {tab.duty_cycle:g}, cycle {tab.cycle_s:g} s"
+    params = ", ".join(f"{k} = {v:g}" for k, v in tab.model.as_dict().items())
+    lines = [f"Endurance times: {tab.name} ({tab.model.kind}: {params}); {task}", ""]
+    head = "| TL | ET simulated (s) | ET closed form (s) | sim / closed - 1 |"
+    sep = "|----|------------------|--------------------|------------------|"
+    if tab.et_power.size:
+        head += f" ET Frey-Law & Avin {tab.joint} (s) | closed / power - 1 |"
+        sep += "------|------|"
+    lines += [head, sep]
+    for i, x in enumerate(tab.loads):
+        row = f"| {x:.2f} | {_fmt(tab.et_sim[i])} | {_fmt(tab.et_closed[i])} | {_pct(tab.rel_error_closed[i])} |"
+        if tab.et_power.size:
+            row += f" {_fmt(tab.et_power[i])} | {_pct(tab.rel_error_power[i])} |"
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def format_comparison(tables: Sequence[EnduranceTable]) -> str:
+    """One Markdown table: per joint and load, the 3CC closed form vs the power model, with the
+    relative error, and per joint the RMS of the log error and of the error in seconds."""
+    loads = tables[0].loads
+    head = "| joint | " + " | ".join(f"TL {x:.1f}" for x in loads) + " | RMS log error | RMS error (s) |"
+    lines = [
+        "3CC closed form (Frey-Law et al. 2012 F, R) vs Frey-Law & Avin (2010) power model: ET (s) 3CC / power (error)",
+        "",
+        head,
+        "|" + "---|" * (len(loads) + 3),
+    ]
+    for tab in tables:
+        cells = [f"{_fmt(c)} / {_fmt(p)} ({_pct(c / p - 1 if np.isfinite(c) else np.nan)})"
+                 for c, p in zip(tab.et_closed, tab.et_power)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            le = np.log(tab.et_closed / tab.et_power)
+        rms = float(np.sqrt(np.mean(le[np.isfinite(le)] ** 2))) if np.isfinite(le).any() else math.nan
+        diff = tab.et_closed - tab.et_power
+        rms_s = float(np.sqrt(np.mean(diff[np.isfinite(diff)] ** 2))) if np.isfinite(diff).any() else math.nan
+        lines.append(f"| {tab.joint} | " + " | ".join(cells) + f" | {rms:.3f} | {rms_s:.1f} |")
+    return "\n".join(lines)
+
+
+# -- files --------------------------------------------------------------------------------------------
+
+
+def check_output_dir(out_dir: Path | str) -> Path:
+    """Create ``out_dir`` if needed and check it is a writable folder (raises OutputLocationError)."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise OutputLocationError(f"--out {str(out)!r} is an existing file: expected a folder (existing or new)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputLocationError(f"--out {str(out)!r} cannot be created ({exc.strerror}): expected a writable folder") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise OutputLocationError(f"--out {str(out)!r} is not writable: expected a writable folder")
+    return out
+
+
+def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Sequence[EnduranceTable] = ()) -> Path:
+    """Write endurance tables to HDF5 (``path.tmp`` then ``os.replace``).
+
+    Layout: one group per table under ``/endurance/<i>`` and ``/frey_law_avin/<joint>`` with
+    datasets ``TL``, ``et_sim_s``, ``et_closed_form_s``, ``et_power_model_s`` (if any) and attributes
+    ``name``, ``model``, ``params`` (JSON), ``duty_cycle``, ``cycle_s``, ``source``, ``definition``.
+    """
+    import json
+
+    import h5py
+
+    from fatigue_pin import __version__ as version
+
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    definition = ("first time at which ma + mr < TL while the task asks for TL, from a rested actuator, rests "
+                  "included; inf if none before t_max")
+    try:
+        with h5py.File(tmp, "w") as h5:
+            h5.attrs["description"] = "fatigue_pin endurance times of isometric tasks"
+            h5.attrs["fatigue_pin_version"] = version
+            h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+            h5.attrs["definition"] = definition
+            h5.attrs["power_model_source"] = FREY_LAW_AVIN_SOURCE
+            for group, tabs in (("endurance", tables), ("frey_law_avin", comparison)):
+                for i, tab in enumerate(tabs):
+                    g = h5.create_group(f"{group}/{tab.joint if group == 'frey_law_avin' else i}")
+                    g.attrs["name"] = tab.name
+                    g.attrs["model"] = tab.model.kind
+                    g.attrs["params"] = json.dumps(tab.model.as_dict())
+                    g.attrs["duty_cycle"] = tab.duty_cycle
+                    g.attrs["cycle_s"] = np.nan if tab.cycle_s is None else tab.cycle_s
+                    g.attrs["source"] = tab.source
+                    g.create_dataset("TL", data=tab.loads)
+                    g.create_dataset("et_sim_s", data=tab.et_sim)
+                    g.create_dataset("et_closed_form_s", data=tab.et_closed)
+                    if tab.et_power.size:
+                        g.attrs["joint"] = tab.joint
+                        g.create_dataset("et_power_model_s", data=tab.et_power)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def plot_endurance(path: Path | str, tables: Sequence[EnduranceTable], comparison: Sequence[EnduranceTable] = ()) -> Path:
+    """Log-log figure of ET vs TL: simulated points, closed-form lines and power models (PNG)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    n = 2 if comparison else 1
+    fig = Figure(figsize=(6.5 * n, 5))
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    ax = axes[0]
+    fine = np.linspace(0.05, 0.98, 200)
+    for k, tab in enumerate(tables):
+        color = f"C{k}"
+        ax.loglog(tab.loads, tab.et_sim, "o", color=color, label=f"{tab.name}: simulated")
+        if isinstance(tab.model, XiaFatigue):
+            m = tab.model
+            closed = [intermittent_et_closed_form(m.F, m.R, x, tab.duty_cycle, tab.cycle_s, m.r) for x in fine]
+            ax.loglog(fine, closed, "-", color=color, lw=1, label=f"{tab.name}: closed form (instant activation)")
+        if tab.et_power.size:
+            ax.loglog(fine, power_model_et(tab.joint, fine), "--", color="k", lw=1,
+                      label=f"Frey-Law & Avin 2010, {tab.joint}")
+    ax.set_xlabel("target load TL (fraction of maximum)")
+    ax.set_ylabel("endurance time (s)")
+    ax.set_title("Endurance time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    if comparison:
+        ax = axes[1]
+        for k, tab in enumerate(comparison):
+            ax.loglog(fine, sustained_et_closed_form(tab.model.F, tab.model.R, fine), "-", color=f"C{k}", lw=1.2,
+                      label=f"{tab.joint}: 3CC")
+            ax.loglog(fine, power_model_et(tab.joint, fine), "--", color=f"C{k}", lw=1, label=f"{tab.joint}: power model")
+        ax.set_xlabel("target load TL (fraction of maximum)")
+        ax.set_ylabel("endurance time (s)")
+        ax.set_title("3CC (Frey-Law et al. 2012) vs Frey-Law & Avin 2010")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out, dpi=120)
+    return out
+
+
+def run_endurance(
+    out_dir: Path | str,
+    preset_name: str = "frey-law-2012/elbow",
+    loads: Sequence[float] = DEFAULT_LOADS,
+    duty_cycle: float = 1.0,
+    cycle_s: float | None = None,
+    compare: bool = True,
+) -> tuple[EnduranceTable, list[EnduranceTable], dict[str, Path]]:
+    """Endurance table of a preset (name or JSON file), the per-joint comparison with Frey-Law &
+    Avin (2010), ``endurance.h5`` and ``endurance.png`` in ``out_dir`` (checked first)."""
+    from fatigue_pin.fatigue.presets import preset, preset_source
+
+    model = preset(preset_name)
+    source = preset_source(preset_name)
+    out = check_output_dir(out_dir)
+    joint = None
+    if preset_name.startswith("frey-law-2012/"):
+        joint = preset_name.split("/", 1)[1]
+    tab = endurance_table(model, loads, duty_cycle, cycle_s, name=preset_name, joint=joint, source=source)
+    comparison = compare_frey_law_avin(loads) if compare else []
+    paths = {"h5": write_h5(out / "endurance.h5", [tab], comparison),
+             "png": plot_endurance(out / "endurance.png", [tab], comparison)}
+    return tab, comparison, paths

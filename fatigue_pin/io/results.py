@@ -1,0 +1,629 @@
+"""OCP results in HDF5: one group per run, written atomically, read back as :class:`RunResult`.
+
+Layout (``docs/results.md``)::
+
+    /<run name>/                     attributes: horizon, cost, preset, S, F, R, LD, LR, n_cycles,
+                                     converged, status, wall_time_s, build_time_s, iterations,
+                                     solver, model, weights (JSON), fatigue_params (JSON),
+                                     study (the study's TOML text, when run from a study),
+                                     urdf (the model's URDF text)
+        t            (nodes,)              s
+        q, qdot      (nodes, nq)           rad, rad/s          attribute joints
+        tau_plus     (intervals, nv)       N m                 attribute joints
+        tau_minus    (intervals, nv)       N m
+        <state>      (nodes, halves)       1, one dataset per fatigue state the models declare
+                                           (Xia: ma, mr, mf; group attribute fatigue_states lists
+                                           them; NaN in the columns of halves without the state)
+        cycle_costs  (cycles, terms)       weighted cost       attribute terms
+        torque_limits (cycles, halves)     N m, (1 - mf) * tau_limit at the end of each cycle
+        cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
+        windows      (windows,) table      sliding horizon only: index, first_cycle, status,
+                                           converged, iterations, wall_time_s, objective
+    /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
+
+The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
+run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
+layout 1.
+
+Every write takes the file's lock (``flock`` of ``.<name>.lock`` beside it, so concurrent
+writers take turns and none loses another's update), copies the current file's bytes beside it,
+edits only the changed group in the copy, fsyncs it and renames it over the old one
+(``os.replace``), so a crash, a kill or a full disk at any moment leaves either the old or the
+new file, both complete and readable, and a write costs about the same whatever the file holds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import json
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+import h5py
+import numpy as np
+
+from fatigue_pin.core.errors import FatiguePinError
+
+#: Attributes every run group carries.
+RUN_ATTRIBUTES = (
+    "horizon", "n_cycles", "converged", "status", "wall_time_s", "build_time_s", "iterations", "solver", "model",
+    "weights", "fatigue_params",
+)
+#: Fatigue states of files written before the layout named them (Xia's model).
+LEGACY_FATIGUE_STATES = ("ma", "mr", "mf")
+
+WINDOW_DTYPE = np.dtype([
+    ("index", "i4"), ("first_cycle", "i4"), ("status", "S40"), ("converged", "?"),
+    ("iterations", "i4"), ("wall_time_s", "f8"), ("objective", "f8"),
+])
+
+SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40"), ("iterations", "i4"), ("wall_time_s", "f8"),
+                         ("kind", "S24"), ("guess", "S24"), ("constraint_violation", "f8")])
+
+
+class ResultFileError(FatiguePinError, ValueError):
+    """A result file or run that cannot be read."""
+
+
+@dataclass
+class RunResult:
+    """One OCP run (full horizon, or sliding horizon stitched from its windows).
+
+    Shapes: nodes = n_cycles * intervals_per_cycle + 1, intervals = nodes - 1, halves = 2 nv.
+
+    Attributes:
+        name: group name in the file.
+        attrs: run attributes (see :data:`RUN_ATTRIBUTES`; more may be present).
+        t: node times (s), (nodes,).
+        q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
+        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv).
+        fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
+            the columns of halves whose model has no such state.
+        cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
+        torque_limits: available torque (1 - mf) * tau_limit of every half at the end of each
+            cycle (N m, signed like the half), (cycles, halves).
+        joint_names, actuator_names, cost_terms: labels of the columns.
+        cycle_wall_time_s: solve time attributed to each cycle (s), (cycles,).
+        windows: sliding-horizon window table (structured, :data:`WINDOW_DTYPE`), or None.
+        urdf: the model's URDF text (so the file reproduces itself), or "".
+        study: the TOML text of the study that produced the run, or "" (built in Python).
+        fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
+    """
+
+    name: str
+    attrs: dict[str, Any]
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    tau_plus: np.ndarray
+    tau_minus: np.ndarray
+    fatigue: dict[str, np.ndarray]
+    cycle_costs: np.ndarray
+    torque_limits: np.ndarray
+    joint_names: tuple[str, ...]
+    actuator_names: tuple[str, ...]
+    cost_terms: tuple[str, ...]
+    cycle_wall_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    windows: np.ndarray | None = None
+    urdf: str = ""
+    study: str = ""
+    fatigued: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.fatigued is None:
+            self.fatigued = self.fatigue.get("mf")
+
+    @property
+    def fatigue_states(self) -> tuple[str, ...]:
+        return tuple(self.fatigue)
+
+    def state(self, name: str) -> np.ndarray:
+        """Fatigue state ``name`` of every half, (nodes, halves)."""
+        if name not in self.fatigue:
+            raise ResultFileError(f"run {self.name!r} has no fatigue state {name!r}; its states are {list(self.fatigue)}")
+        return self.fatigue[name]
+
+    @property
+    def ma(self) -> np.ndarray:
+        return self.state("ma")
+
+    @property
+    def mr(self) -> np.ndarray:
+        return self.state("mr")
+
+    @property
+    def mf(self) -> np.ndarray:
+        return self.state("mf")
+
+    @property
+    def n_cycles(self) -> int:
+        return int(self.cycle_costs.shape[0])
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.attrs.get("converged", False))
+
+    @property
+    def intervals_per_cycle(self) -> int:
+        return (self.t.size - 1) // max(self.n_cycles, 1)
+
+    def invariant_error(self) -> np.ndarray:
+        """|1 - (sum of the fatigue states)| of every half at every node, (nodes, halves) (for
+        Xia's model |1 - (ma + mr + mf)|; states a half lacks count as 0)."""
+        total = sum(np.nan_to_num(v) for v in self.fatigue.values())
+        return np.abs(1.0 - total)
+
+    def cycle_slice(self, cycle: int) -> slice:
+        """Node slice of cycle ``cycle`` (0-based), both ends included."""
+        n = self.intervals_per_cycle
+        if not 0 <= cycle < self.n_cycles:
+            raise ResultFileError(f"cycle {cycle} is out of range: run {self.name!r} has cycles 0..{self.n_cycles - 1}")
+        return slice(cycle * n, (cycle + 1) * n + 1)
+
+
+def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, intervals_per_cycle: int) -> np.ndarray:
+    """(1 - mf) * limit at nodes n, 2n, ..., shape (cycles, halves); ``signed_limits`` (halves,)."""
+    ends = np.arange(intervals_per_cycle, mf.shape[0], intervals_per_cycle)
+    return (1.0 - mf[ends]) * np.asarray(signed_limits)[None, :]
+
+
+def _as_attr(value: Any) -> Any:
+    if value is None:
+        return "none"
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _write_run(group: h5py.Group, run: RunResult) -> None:
+    for key, value in run.attrs.items():
+        group.attrs[key] = _as_attr(value)
+    group.attrs["urdf"] = run.urdf
+    group.attrs["study"] = run.study
+    group.attrs["fatigue_states"] = list(run.fatigue)
+    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_plus": "N m", "tau_minus": "N m",
+             "cycle_costs": "cost", "torque_limits": "N m", "cycle_wall_time_s": "s"}
+    arrays = {name: getattr(run, name) for name in units} | dict(run.fatigue) | {"fatigued": run.fatigued}
+    units |= {name: "1" for name in run.fatigue} | {"fatigued": "1"}
+    for name, unit in units.items():
+        data = np.asarray(arrays[name], dtype=float)
+        ds = group.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
+        ds.attrs["unit"] = unit
+    for name in ("q", "qdot", "tau_plus", "tau_minus"):
+        group[name].attrs["joints"] = list(run.joint_names)
+    for name in (*run.fatigue, "fatigued", "torque_limits"):
+        group[name].attrs["actuators"] = list(run.actuator_names)
+    group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
+    if run.windows is not None:
+        group.create_dataset("windows", data=np.asarray(run.windows, dtype=WINDOW_DTYPE))
+
+
+def _str_list(values: Any) -> tuple[str, ...]:
+    return tuple(v.decode() if isinstance(v, bytes) else str(v) for v in values)
+
+
+def _read_run(group: h5py.Group, name: str) -> RunResult:
+    states = _str_list(group.attrs["fatigue_states"]) if "fatigue_states" in group.attrs else LEGACY_FATIGUE_STATES
+    missing = [k for k in ("t", "q", "qdot", "tau_plus", "tau_minus", *states, "cycle_costs", "torque_limits") if k not in group]
+    if missing:
+        raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
+    attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
+    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in attrs.items()}
+    return RunResult(
+        name=name,
+        attrs=attrs,
+        t=group["t"][()],
+        q=group["q"][()],
+        qdot=group["qdot"][()],
+        tau_plus=group["tau_plus"][()],
+        tau_minus=group["tau_minus"][()],
+        fatigue={s: group[s][()] for s in states},
+        cycle_costs=group["cycle_costs"][()],
+        torque_limits=group["torque_limits"][()],
+        joint_names=_str_list(group["q"].attrs["joints"]),
+        actuator_names=_str_list(group[states[0]].attrs["actuators"]),
+        cost_terms=_str_list(group["cycle_costs"].attrs["terms"]),
+        cycle_wall_time_s=group["cycle_wall_time_s"][()] if "cycle_wall_time_s" in group else np.zeros(0),
+        windows=group["windows"][()] if "windows" in group else None,
+        urdf=str(group.attrs.get("urdf", "")),
+        study=_text(group.attrs.get("study", "")),
+        fatigued=group["fatigued"][()] if "fatigued" in group else None,
+    )
+
+
+def _text(value: Any) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+LAYOUT = 2
+#: The ``format`` attribute of files this version writes.
+FORMAT = f"fatigue_pin.results/{LAYOUT}"
+_FORMAT_PREFIX = "fatigue_pin.results/"
+#: File-creation settings: free space is tracked across sessions, so replacing a run reuses the
+#: space of the old one instead of growing the file.
+_CREATE = {"fs_strategy": "fsm", "fs_persist": True, "fs_threshold": 1}
+#: A file is compacted once it is larger than twice its size after its last compaction plus this.
+_COMPACT_SLACK = 1 << 20
+
+
+def _layout_of(h5: h5py.File, path: Path) -> int | None:
+    """The layout version of an open file (None: no ``format`` attribute, e.g. forward studies);
+    refuses a newer layout or a foreign format."""
+    if "format" not in h5.attrs:
+        return None
+    fmt = _text(h5.attrs["format"])
+    number = fmt[len(_FORMAT_PREFIX):] if fmt.startswith(_FORMAT_PREFIX) else ""
+    if not number.isdigit():
+        raise ResultFileError(f"{str(path)!r} has format {fmt!r}; expected a fatigue_pin result file ({FORMAT!r})")
+    if int(number) > LAYOUT:
+        raise ResultFileError(f"{str(path)!r} was written by a newer fatigue_pin (layout {int(number)}); "
+                              f"this version reads layouts up to {LAYOUT}")
+    return int(number)
+
+
+def _io_error(path: Path, exc: OSError) -> ResultFileError:
+    """A one-line error for an OSError while writing ``path`` (the previous file is unchanged)."""
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT) or "No space left" in str(exc):
+        return ResultFileError(f"cannot write {str(path)!r}: the disk is full (no space left on device); "
+                               "the previous file is unchanged")
+    reason = exc.strerror or str(exc).splitlines()[0]
+    return ResultFileError(f"cannot write {str(path)!r}: {reason}; the previous file is unchanged")
+
+
+@contextlib.contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path`` (``flock`` of the sidecar ``.<name>.lock``) so that
+    concurrent writers take turns; each re-reads the file under the lock."""
+    lock = path.with_name(f".{path.name}.lock")
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError as exc:  # a file system without locks (some network mounts): write unlocked
+            if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+                raise
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _clone(src: Path, dst: Path) -> None:
+    """Copy the bytes of ``src`` to ``dst``: a reflink where the file system has them, else a
+    kernel-side copy."""
+    with open(src, "rb") as fin, open(dst, "wb") as fout:
+        try:
+            fcntl.ioctl(fout.fileno(), 0x40049409, fin.fileno())  # FICLONE (btrfs, xfs): instant
+            return
+        except OSError:
+            pass
+    shutil.copyfile(src, dst)  # sendfile / copy_file_range on Linux
+
+
+def _compact(src: Path, dst: Path) -> None:
+    """Rewrite ``src`` object by object into a new file at ``dst`` created with :data:`_CREATE`
+    (files of layout 1, or written without persistent free-space tracking; once per file),
+    naming the fatigue states of runs that predate ``fatigue_states``."""
+    with h5py.File(src, "r") as old, h5py.File(dst, "w", **_CREATE) as new:
+        for key, value in old.attrs.items():
+            new.attrs[key] = value
+        for key in old:
+            old.copy(old[key], new, name=key)
+        runs: list[str] = []
+        new.visititems(lambda key, obj: runs.append(key) if isinstance(obj, h5py.Group) and "t" in obj and "q" in obj else None)
+        for key in runs:
+            if "fatigue_states" not in new[key].attrs:
+                new[key].attrs["fatigue_states"] = [s for s in LEGACY_FATIGUE_STATES if s in new[key]]
+
+
+def _prepare(path: Path, tmp: Path) -> int | None:
+    """Put at ``tmp`` a copy of ``path`` (an empty new file if there is none) to be edited.
+
+    The copy is a byte copy, unless the file is of an older layout, lacks persistent free-space
+    tracking, or has more than doubled (plus 1 MiB) since it was last compacted (HDF5 does not
+    reuse all the space of deleted groups): then it is rewritten object by object, once in a
+    while, so a file's size stays within about twice its contents. Returns the size of a new or
+    compacted file (None for a byte copy).
+    """
+    if not path.exists():
+        h5py.File(tmp, "w", **_CREATE).close()
+        return 0
+    with _open(path) as old:  # refuses a damaged file, a foreign one or a newer layout
+        layout = _layout_of(old, path)
+        persistent = bool(old.id.get_create_plist().get_file_space_strategy()[1])
+        compacted = int(old.attrs.get("compacted_bytes", 0))
+    if layout == LAYOUT and persistent and path.stat().st_size <= 2 * compacted + _COMPACT_SLACK:
+        _clone(path, tmp)
+        return None
+    _compact(path, tmp)
+    return tmp.stat().st_size
+
+
+def _fsync(path: Path, directory: bool = False) -> None:
+    fd = os.open(path, os.O_RDONLY if directory else os.O_RDWR)
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not directory:
+            raise
+    finally:
+        os.close(fd)
+
+
+def _check_room(path: Path, new_bytes: int) -> None:
+    """Refuse a write that cannot fit before HDF5 starts it: a copy of the file plus the new data
+    (with a margin for HDF5's metadata). HDF5 failing to write in the middle of an edit leaves its
+    library state in this process damaged (later calls may crash), so a full disk is detected
+    here whenever it can be."""
+    old = path.stat().st_size if path.exists() else 0
+    need = old + 2 * new_bytes + (64 << 10)
+    try:
+        st = os.statvfs(path.parent)
+    except OSError:
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < need:
+        raise ResultFileError(
+            f"cannot write {str(path)!r}: the disk is full ({free} bytes free, about {need} needed); "
+            "the previous file is unchanged"
+        )
+
+
+def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -> None:
+    """Change ``path``: delete the groups in ``skip``, then ``fill(h5file)``.
+
+    Under the file's lock, the current file is copied byte for byte beside it (``FILE.tmp``), the
+    copy is edited with h5py, flushed and fsynced, and renamed over the original
+    (``os.replace``). A write costs a copy of the file's bytes plus the new data, whatever the
+    file holds; a kill, a crash or a full disk at any moment leaves the previous file unchanged.
+
+    Raises:
+        ResultFileError: the existing file cannot be read (damaged, not HDF5, newer layout), or
+            the write fails (full disk, permissions), naming the path.
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with _locked(path):
+            _check_room(path, new_bytes)
+            try:
+                compacted = _prepare(path, tmp)
+                with h5py.File(tmp, "a") as h5:
+                    if compacted is not None:
+                        h5.attrs["compacted_bytes"] = compacted
+                    for key in skip:  # run names may be paths such as "sliding/torque_S10"
+                        if key in h5:
+                            del h5[key]
+                    fill(h5)
+                    h5.attrs["format"] = FORMAT
+                _fsync(tmp)
+                os.replace(tmp, path)
+                _fsync(path.parent, directory=True)
+            finally:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+    except OSError as exc:
+        raise _io_error(path, exc) from exc
+
+
+def write_run(path: str | Path, run: RunResult) -> Path:
+    """Add or replace run ``run.name`` in the HDF5 file ``path`` (atomic, crash-safe)."""
+
+    def fill(h5: h5py.File) -> None:
+        _write_run(h5.create_group(run.name), run)
+
+    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values()]
+    size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
+    _atomic_rewrite(Path(path), {run.name}, fill, new_bytes=size)
+    return Path(path)
+
+
+def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any] | None = None) -> None:
+    """Write the table of a max-cycles search as ``/search/<name>`` (atomic), one row per solve:
+    n_cycles, converged, IPOPT status, iterations, wall_time_s, kind (how it ended,
+    :func:`fatigue_pin.ocp.solver.failure_kind`), guess (what started it: ``warm N=<n>`` or the guess
+    name) and constraint_violation (IPOPT's inf_pr at the last iterate)."""
+
+    table = np.array([(r["n_cycles"], r["converged"], r["status"].encode()[:40], r["iterations"], r["wall_time_s"],
+                       str(r.get("kind", "")).encode()[:24], str(r.get("guess", "")).encode()[:24],
+                       float(r.get("constraint_violation", np.nan))) for r in rows], dtype=SEARCH_DTYPE)
+
+    def fill(h5: h5py.File) -> None:
+        grp = h5.require_group("search")
+        if name in grp:
+            del grp[name]
+        ds = grp.create_dataset(name, data=table)
+        for key, value in (attrs or {}).items():
+            ds.attrs[key] = _as_attr(value)
+
+    _atomic_rewrite(Path(path), set(), fill)
+
+
+def check_output(path: str | Path) -> Path:
+    """Check, before any work, that ``path`` can receive a result file.
+
+    Its folder must exist (or be creatable) and be writable, ``path`` must not be a folder, an
+    existing file must be a result file this version can read and extend (HDF5, complete, not
+    of a newer layout), and the disk must have room for a copy of it (every write copies the
+    file beside it before renaming it over the old one).
+
+    Raises:
+        ResultFileError: naming the path and what is wrong.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ResultFileError(f"output {str(path)!r} is a folder; expected the path of an HDF5 result file")
+    size = 0
+    if path.exists():
+        if not path.is_file():
+            raise ResultFileError(f"output {str(path)!r} is not a regular file; expected the path of an HDF5 result file")
+        if not os.access(path, os.R_OK):
+            raise ResultFileError(f"output {str(path)!r} is not readable (permission denied); runs are added to an existing file")
+        if not h5py.is_hdf5(path):
+            raise ResultFileError(f"output {str(path)!r} exists and is not an HDF5 file; expected a new path or a result file")
+        with _open(path):  # damaged or of a newer layout: refused now, not after the solve
+            pass
+        if not os.access(path, os.W_OK):
+            raise ResultFileError(f"output {str(path)!r} is not writable")
+        size = path.stat().st_size
+    folder = path.parent
+    _check_folder(folder, f"output folder {str(folder)!r}")
+    _check_space(folder, size + (64 << 10), f"adding a run to {str(path)!r}")
+    return path
+
+
+def check_output_dir(path: str | Path) -> Path:
+    """Check, before any work, that the folder ``path`` can receive output files: it is a folder
+    (created if missing) that can be written to, on a disk that is not full.
+
+    Raises:
+        ResultFileError: naming the path and what is wrong.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ResultFileError(f"output {str(path)!r} is a file; expected a folder (created if missing)")
+    _check_folder(path, f"output folder {str(path)!r}")
+    _check_space(path, 1 << 20, f"writing to {str(path)!r}")
+    return path
+
+
+def _check_folder(folder: Path, label: str) -> None:
+    """Create ``folder`` if needed and write a small probe file in it."""
+    existing = folder
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ResultFileError(f"{label} cannot be created: {str(existing)!r} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ResultFileError(f"{label} is not writable; expected a folder you can write to")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_") as probe:
+            probe.write(b"\0" * 4096)
+            probe.flush()
+            os.fsync(probe.fileno())
+    except OSError as exc:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise ResultFileError(f"{label} is on a full disk (no space left on device)") from None
+        raise ResultFileError(f"{label} is not writable: a file cannot be created in it ({exc.strerror or exc})") from None
+
+
+def _check_space(folder: Path, need: int, what: str) -> None:
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < need:
+        raise ResultFileError(f"the disk of {str(folder)!r} is full: {free // 1024} KiB free; "
+                              f"{what} needs at least {-(-need // 1024)} KiB")
+
+
+def _open(path: str | Path) -> h5py.File:
+    """Open a result file for reading; every way it can be unusable is a one-line ResultFileError."""
+    path = Path(path)
+    if path.is_dir():
+        raise ResultFileError(f"{str(path)!r} is a folder; expected an HDF5 result file")
+    if not path.exists():
+        raise ResultFileError(f"result file not found: {str(path)!r}; expected an HDF5 file written by fatigue_pin")
+    if not os.access(path, os.R_OK):
+        raise ResultFileError(f"result file {str(path)!r} is not readable (permission denied)")
+    if not h5py.is_hdf5(path):
+        raise ResultFileError(f"{str(path)!r} is not a readable HDF5 file: it lacks the HDF5 signature; "
+                              "expected a result file written by fatigue_pin")
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ResultFileError(f"{str(path)!r} is not a readable HDF5 file: it is truncated or damaged ({reason}); "
+                              "expected a complete result file") from None
+    try:
+        _layout_of(h5, path)
+    except BaseException:
+        h5.close()
+        raise
+    return h5
+
+
+def _run_names(h5: h5py.File) -> list[str]:
+    names: list[str] = []
+    h5.visititems(lambda key, obj: names.append(key) if isinstance(obj, h5py.Group) and "t" in obj and "q" in obj else None)
+    return sorted(names)
+
+
+#: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
+#: ``sliding/torque_S0_failed_window``.
+FAILED_WINDOW_SUFFIX = "_failed_window"
+
+
+def _main_runs(names: list[str]) -> list[str]:
+    """``names`` without the failed windows of sliding runs."""
+    return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
+
+
+def list_runs(path: str | Path, failed_windows: bool = False) -> list[str]:
+    """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted; the
+    failed windows of sliding runs (``*_failed_window``) only with ``failed_windows=True``."""
+    with _open(path) as h5:
+        try:
+            names = _run_names(h5)
+        except (OSError, RuntimeError) as exc:
+            raise ResultFileError(f"{str(path)!r} is damaged: its groups cannot be listed ({exc})") from None
+    return names if failed_windows else _main_runs(names)
+
+
+def read_run(path: str | Path, name: str | None = None) -> RunResult:
+    """Read one run; ``name`` may be omitted when the file holds exactly one run (a sliding
+    run's failed window, ``*_failed_window``, does not count)."""
+    with _open(path) as h5:
+        runs = _run_names(h5)
+        if name is None:
+            main = _main_runs(runs)
+            if len(main) != 1:
+                raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name")
+            name = main[0]
+        if name not in runs:
+            shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]
+            raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {shown}")
+        try:
+            return _read_run(h5[name], name)
+        except ResultFileError:
+            raise
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ResultFileError(f"run {name!r} in {str(path)!r} cannot be read ({reason}); the file is damaged") from None
+
+
+def read_search(path: str | Path) -> dict[str, np.ndarray]:
+    """All max-cycles search tables of a file, by name."""
+    with _open(path) as h5:
+        if "search" not in h5:
+            return {}
+        try:
+            return {k: h5["search"][k][()] for k in h5["search"]}
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            raise ResultFileError(f"the search tables of {str(path)!r} cannot be read ({exc}); the file is damaged") from None
+
+
+def config_json(obj: Any) -> str:
+    """JSON text of a (nested) dataclass configuration, for the ``config`` attribute."""
+    import dataclasses
+
+    def default(o: Any) -> Any:
+        if dataclasses.is_dataclass(o):
+            return {f.name: getattr(o, f.name) for f in dataclasses.fields(o)}
+        if isinstance(o, (np.ndarray, np.generic)):
+            return o.tolist()
+        if isinstance(o, Path):
+            return str(o)
+        return repr(o)
+
+    return json.dumps(obj, default=default, sort_keys=True)

@@ -1,0 +1,397 @@
+"""Signed torque actuators, each half carrying its own fatigue model (any :class:`FatigueModel`).
+
+Every joint ``j`` of a model is driven by two halves whose torques add up to the joint torque:
+
+* the flexion half ``j_plus`` with torque ``tau_plus`` in [0, tau_upper] (N m or N), and
+* the extension half ``j_minus`` with torque ``tau_minus`` in [tau_lower, 0].
+
+Each half has a target load ``TL = tau / tau_limit`` in [0, 1] (``tau_plus / tau_upper`` or
+``tau_minus / tau_lower``) and the fatigue states its model declares (Xia's 3CC: ``(ma, mr, mf)``),
+driven by the model's right-hand side.
+
+Orderings (used by every vector of this module):
+
+* halves: for each joint in model order, the plus half then the minus half, i.e.
+  ``(j0_plus, j0_minus, j1_plus, j1_minus, ...)`` (``n_halves = 2 * nv``);
+* fatigue states: the states of each half consecutively, halves in the order above; where a
+  half's states start is :meth:`SignedTorqueActuators.state_offsets`, and a state is addressed by
+  name with :meth:`SignedTorqueActuators.state_rows` (``n_states`` = the sum of the halves' states);
+* torques ``tau_plus`` and ``tau_minus``: one entry per joint in model order (shape (nv,)).
+
+The symbolic methods accept CasADi SX, MX or DM and numpy arrays, and return CasADi expressions.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Protocol, Union
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.fatigue.models import FatigueModel, FatigueParams
+
+__all__ = ["ActuatorHalf", "SignedTorqueActuators", "ParamsSpec"]
+
+Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
+#: Fatigue parameters for :meth:`SignedTorqueActuators.from_model`: one set for every half, or a
+#: dict joint name -> one set for both halves or a ``(plus, minus)`` pair.
+ParamsSpec = Union[FatigueModel, Mapping[str, Union[FatigueModel, tuple[FatigueModel, FatigueModel]]]]
+
+
+class _HasTorqueLimits(Protocol):
+    joint_names: tuple[str, ...]
+    tau_lower: np.ndarray
+    tau_upper: np.ndarray
+
+
+@dataclass(frozen=True)
+class ActuatorHalf:
+    """One half of a signed torque actuator.
+
+    Attributes:
+        joint: name of the joint it drives.
+        sign: +1 for the flexion half (torque >= 0), -1 for the extension half (torque <= 0).
+        tau_limit: magnitude of its torque limit (N m, or N for a prismatic joint), > 0.
+        params: its fatigue model with its parameter values (any :class:`FatigueModel`).
+    """
+
+    joint: str
+    sign: int
+    tau_limit: float
+    params: FatigueModel
+
+    def __post_init__(self) -> None:
+        if self.sign not in (1, -1) or isinstance(self.sign, bool):
+            raise ParameterError(f"ActuatorHalf({self.joint!r}).sign = {self.sign!r}: expected +1 or -1")
+        lim = float(self.tau_limit)
+        if not math.isfinite(lim) or lim <= 0.0:
+            raise ParameterError(
+                f"ActuatorHalf({self.joint!r}, sign {self.sign:+d}).tau_limit = {self.tau_limit!r}: "
+                "expected a finite torque magnitude > 0 (N m)"
+            )
+        object.__setattr__(self, "tau_limit", lim)
+        if not isinstance(self.params, FatigueModel):
+            raise ParameterError(f"ActuatorHalf({self.joint!r}).params = {self.params!r}: expected a fatigue model (FatigueModel)")
+
+    @property
+    def name(self) -> str:
+        """``<joint>_plus`` or ``<joint>_minus``."""
+        return f"{self.joint}_{'plus' if self.sign > 0 else 'minus'}"
+
+    @property
+    def signed_limit(self) -> float:
+        """The torque at TL = 1: ``+tau_limit`` or ``-tau_limit`` (N m)."""
+        return self.sign * self.tau_limit
+
+    @property
+    def tau_bounds(self) -> tuple[float, float]:
+        """``(lower, upper)`` torque bounds of this half (N m): ``(0, tau_limit)`` or ``(-tau_limit, 0)``."""
+        return (0.0, self.tau_limit) if self.sign > 0 else (-self.tau_limit, 0.0)
+
+
+def _column(x: Expr, n: int, what: str) -> Expr:
+    """Return ``x`` as a CasADi column of length ``n`` (numpy -> DM)."""
+    if isinstance(x, (ca.SX, ca.MX, ca.DM)):
+        if x.shape not in ((n, 1), (1, n)) and not (n == 1 and x.numel() == 1):
+            raise DimensionError(f"{what} of shape {x.shape}: expected {n} entries")
+        return x if x.shape[1] == 1 else x.T
+    a = np.asarray(x, dtype=float).reshape(-1)
+    if a.shape != (n,):
+        raise DimensionError(f"{what} of shape {np.shape(x)}: expected {n} entries")
+    return ca.DM(a)
+
+
+class SignedTorqueActuators:
+    """Signed torque actuators of a model: a plus and a minus half per joint, each with 3CC-S fatigue.
+
+    Build with :meth:`from_model` or :meth:`from_limits`. See the module docstring for the ordering
+    of halves and states.
+    """
+
+    def __init__(self, halves: Sequence[ActuatorHalf]):
+        """Args:
+        halves: ``(j0 plus, j0 minus, j1 plus, j1 minus, ...)``; each joint exactly once.
+        """
+        halves = tuple(halves)
+        if not halves or len(halves) % 2:
+            raise DimensionError(f"{len(halves)} actuator halves: expected a plus and a minus half per joint (an even number > 0)")
+        joints: list[str] = []
+        for k in range(0, len(halves), 2):
+            plus, minus = halves[k], halves[k + 1]
+            if plus.joint != minus.joint or plus.sign != 1 or minus.sign != -1:
+                raise ParameterError(
+                    f"actuator halves {k} and {k + 1} are {plus.name!r}, {minus.name!r}: expected the plus then the minus half of one joint"
+                )
+            if plus.joint in joints:
+                raise ParameterError(f"joint {plus.joint!r} has more than one pair of actuator halves")
+            joints.append(plus.joint)
+        self._halves = halves
+        self._joint_names = tuple(joints)
+
+    # -- construction --------------------------------------------------------------------------
+
+    @classmethod
+    def from_limits(
+        cls,
+        joint_names: Sequence[str],
+        tau_lower: Sequence[float] | np.ndarray,
+        tau_upper: Sequence[float] | np.ndarray,
+        params: ParamsSpec,
+    ) -> SignedTorqueActuators:
+        """Build from joint names and torque bounds.
+
+        Args:
+            joint_names: joint names in model order (length nv).
+            tau_lower: lower torque bounds (N m), shape (nv,), each < 0 (limit of the minus half).
+            tau_upper: upper torque bounds (N m), shape (nv,), each > 0 (limit of the plus half).
+            params: one :class:`FatigueParams` for every half, or a dict joint name -> FatigueParams
+                (both halves) or -> ``(plus, minus)`` pair; the dict must name every joint and no other.
+
+        Raises:
+            ParameterError: unknown or missing joint names in ``params``, or a bound of the wrong sign.
+            DimensionError: bounds whose length is not the number of joints.
+        """
+        names = tuple(str(n) for n in joint_names)
+        nv = len(names)
+        lo = np.asarray(tau_lower, dtype=float).reshape(-1)
+        up = np.asarray(tau_upper, dtype=float).reshape(-1)
+        if lo.shape != (nv,) or up.shape != (nv,):
+            raise DimensionError(f"tau_lower {lo.shape}, tau_upper {up.shape}: expected ({nv},) for joints {list(names)}")
+        for j, name in enumerate(names):
+            if not (lo[j] < 0.0):
+                raise ParameterError(f"tau_lower of joint {name!r} = {lo[j]!r} N m: expected < 0 (limit of the extension half)")
+            if not (up[j] > 0.0):
+                raise ParameterError(f"tau_upper of joint {name!r} = {up[j]!r} N m: expected > 0 (limit of the flexion half)")
+        per_joint = cls._resolve_params(names, params)
+        halves: list[ActuatorHalf] = []
+        for j, name in enumerate(names):
+            p_plus, p_minus = per_joint[name]
+            halves.append(ActuatorHalf(name, 1, float(up[j]), p_plus))
+            halves.append(ActuatorHalf(name, -1, float(-lo[j]), p_minus))
+        return cls(halves)
+
+    @classmethod
+    def from_model(cls, model: _HasTorqueLimits, params: ParamsSpec) -> SignedTorqueActuators:
+        """Build from a model with ``joint_names``, ``tau_lower`` and ``tau_upper`` (N m), e.g. a
+        :class:`fatigue_pin.robot.model.RobotModel`. See :meth:`from_limits` for ``params``."""
+        return cls.from_limits(model.joint_names, model.tau_lower, model.tau_upper, params)
+
+    @staticmethod
+    def _resolve_params(names: tuple[str, ...], params: ParamsSpec) -> dict[str, tuple[FatigueParams, FatigueParams]]:
+        if isinstance(params, FatigueModel):
+            return {n: (params, params) for n in names}
+        if not isinstance(params, Mapping):
+            raise ParameterError(
+                f"actuator params of type {type(params).__name__}: expected a FatigueParams or a dict joint name -> "
+                "FatigueParams or (plus, minus) pair"
+            )
+        unknown = sorted(set(params) - set(names))
+        if unknown:
+            raise ParameterError(f"fatigue params given for unknown joint(s) {unknown}; the model's joints are {list(names)}")
+        missing = [n for n in names if n not in params]
+        if missing:
+            raise ParameterError(f"no fatigue params for joint(s) {missing}; the dict must name every joint of {list(names)}")
+        out: dict[str, tuple[FatigueParams, FatigueParams]] = {}
+        for n in names:
+            v = params[n]
+            if isinstance(v, FatigueModel):
+                out[n] = (v, v)
+            elif isinstance(v, tuple) and len(v) == 2 and all(isinstance(x, FatigueModel) for x in v):
+                out[n] = (v[0], v[1])
+            else:
+                raise ParameterError(f"fatigue params of joint {n!r} = {v!r}: expected a FatigueParams or a (plus, minus) pair")
+        return out
+
+    # -- sizes and names -----------------------------------------------------------------------
+
+    @property
+    def halves(self) -> tuple[ActuatorHalf, ...]:
+        """The halves, ``(j0_plus, j0_minus, j1_plus, ...)``."""
+        return self._halves
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Joint names in model order (length nv)."""
+        return self._joint_names
+
+    @property
+    def nv(self) -> int:
+        """Number of joints."""
+        return len(self._joint_names)
+
+    @property
+    def n_halves(self) -> int:
+        """Number of halves (``2 * nv``)."""
+        return len(self._halves)
+
+    @property
+    def n_states(self) -> int:
+        """Number of fatigue states (the sum over halves of their model's states)."""
+        return sum(h.params.n_states() for h in self._halves)
+
+    @property
+    def n_params(self) -> int:
+        """Length of :meth:`param_vector` (the sum over halves of their model's parameters)."""
+        return sum(h.params.n_params() for h in self._halves)
+
+    @property
+    def half_names(self) -> tuple[str, ...]:
+        """``("j0_plus", "j0_minus", ...)``."""
+        return tuple(h.name for h in self._halves)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Fatigue state names ``("j0_plus_ma", "j0_plus_mr", "j0_plus_mf", "j0_minus_ma", ...)`` (dimensionless)."""
+        return tuple(f"{h.name}_{s}" for h in self._halves for s in h.params.state_names)
+
+    @property
+    def fatigue_state_kinds(self) -> tuple[str, ...]:
+        """Every state name declared by the halves' models, in first-seen order (e.g. ``ma, mr, mf``)."""
+        return tuple(dict.fromkeys(s for h in self._halves for s in h.params.state_names))
+
+    def state_offsets(self) -> list[int]:
+        """Offset of each half's states in the fatigue state vector, length n_halves."""
+        offsets, k = [], 0
+        for h in self._halves:
+            offsets.append(k)
+            k += h.params.n_states()
+        return offsets
+
+    def param_offsets(self) -> list[int]:
+        """Offset of each half's parameters in :meth:`param_vector`, length n_halves."""
+        offsets, k = [], 0
+        for h in self._halves:
+            offsets.append(k)
+            k += h.params.n_params()
+        return offsets
+
+    def state_rows(self, state: str) -> list[int | None]:
+        """Row of state ``state`` of each half in the fatigue state vector (``None`` for a half whose
+        model has no such state), length n_halves."""
+        return [off + h.params.state_names.index(state) if state in h.params.state_names else None
+                for h, off in zip(self._halves, self.state_offsets())]
+
+    def fatigued_rows(self) -> list[int]:
+        """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
+        return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
+
+    def structure_key(self) -> str:
+        """Text identifying what compiled code depends on: joints, limits and fatigue equations."""
+        return ";".join(f"{h.name}:{h.tau_limit!r}:{h.params.structure_key()}" for h in self._halves)
+
+    @property
+    def tau_plus_limits(self) -> np.ndarray:
+        """Upper bounds of ``tau_plus`` (N m), shape (nv,)."""
+        return np.array([h.tau_limit for h in self._halves[0::2]])
+
+    @property
+    def tau_minus_limits(self) -> np.ndarray:
+        """Lower bounds of ``tau_minus`` (N m, negative), shape (nv,)."""
+        return np.array([-h.tau_limit for h in self._halves[1::2]])
+
+    @property
+    def signed_limits(self) -> np.ndarray:
+        """Torque of each half at TL = 1 (N m), shape (n_halves,): ``+tau_upper``, ``tau_lower``, ..."""
+        return np.array([h.signed_limit for h in self._halves])
+
+    def params_of(self, name: str) -> FatigueParams:
+        """Fatigue parameters of the half ``name`` (e.g. ``"elbow_minus"``)."""
+        for h in self._halves:
+            if h.name == name:
+                return h.params
+        raise ParameterError(f"unknown actuator half {name!r}; the halves are {list(self.half_names)}")
+
+    def param_vector(self) -> np.ndarray:
+        """Stacked fatigue parameters of each half (e.g. ``[LD, LR, F, R, S, r]`` for Xia's model),
+        shape (n_params,)."""
+        return np.concatenate([h.params.as_vector() for h in self._halves])
+
+    def initial_state(self) -> np.ndarray:
+        """The rested state of every half (Xia: ``(ma, mr, mf) = (0, 1, 0)``), shape (n_states,)."""
+        return np.concatenate([h.params.rest_state() for h in self._halves])
+
+    def check_stabiliser(self, dt: float, method: str = "rk4") -> None:
+        """Check every half's model for a stable explicit step ``dt`` (raises ParameterError)."""
+        for h in self._halves:
+            try:
+                h.params.check_step(dt, method)
+            except ParameterError as exc:
+                raise ParameterError(f"actuator half {h.name!r}: {exc}") from None
+
+    # -- expressions ---------------------------------------------------------------------------
+
+    def joint_torque(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
+        """Joint torque ``tau_plus + tau_minus`` (N m), shape (nv,)."""
+        return _column(tau_plus, self.nv, "tau_plus") + _column(tau_minus, self.nv, "tau_minus")
+
+    def halves_torque(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
+        """Torques interleaved in half order ``(tp0, tm0, tp1, tm1, ...)`` (N m), shape (n_halves,)."""
+        tp = _column(tau_plus, self.nv, "tau_plus")
+        tm = _column(tau_minus, self.nv, "tau_minus")
+        return ca.vertcat(*[x for j in range(self.nv) for x in (tp[j], tm[j])])
+
+    def target_loads(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
+        """Target loads ``TL`` (dimensionless), shape (n_halves,): ``tau_plus[j] / tau_upper[j]`` and
+        ``tau_minus[j] / tau_lower[j]`` interleaved in half order."""
+        tau = self.halves_torque(tau_plus, tau_minus)
+        return tau / ca.DM(self.signed_limits)
+
+    def state(self, m: Expr, state: str) -> Expr:
+        """State ``state`` (e.g. ``"mf"``) of every half, shape (n_halves,), from ``m`` of shape
+        (n_states,). Every half's model must have that state."""
+        m = _column(m, self.n_states, "fatigue states m")
+        rows = self.state_rows(state)
+        missing = [h.name for h, r in zip(self._halves, rows) if r is None]
+        if missing:
+            raise ParameterError(f"fatigue state {state!r} is not a state of the models of halves {missing}")
+        return ca.vertcat(*[m[r] for r in rows])
+
+    def split_states(self, m: Expr) -> tuple[Expr, ...]:
+        """Every state kind of :attr:`fatigue_state_kinds` of all halves, each shape (n_halves,)."""
+        return tuple(self.state(m, s) for s in self.fatigue_state_kinds)
+
+    def fatigued(self, m: Expr) -> Expr:
+        """Fatigued fraction of every half (its model's ``fatigued_state``), shape (n_halves,)."""
+        m = _column(m, self.n_states, "fatigue states m")
+        return ca.vertcat(*[m[r] for r in self.fatigued_rows()])
+
+    def fatigue_rates(self, m: Expr, tau_plus: Expr, tau_minus: Expr, p: Expr | None = None) -> Expr:
+        """``dm/dt`` (1/s), shape (n_states,), same layout as ``m``.
+
+        Args:
+            m: fatigue states, shape (n_states,).
+            tau_plus, tau_minus: half torques (N m), shape (nv,) each.
+            p: optional parameter vector, shape (n_params,), e.g. a symbol; default
+                :meth:`param_vector`.
+        """
+        m = _column(m, self.n_states, "fatigue states m")
+        TL = self.target_loads(tau_plus, tau_minus)
+        p = ca.DM(self.param_vector()) if p is None else _column(p, self.n_params, "fatigue parameter vector p")
+        out = []
+        for i, (h, so, po) in enumerate(zip(self._halves, self.state_offsets(), self.param_offsets())):
+            ns, npar = h.params.n_states(), h.params.n_params()
+            out.append(h.params.rhs()(m[so : so + ns], TL[i], p[po : po + npar]))
+        return ca.vertcat(*out)
+
+    def coupling(self, m: Expr, tau_plus: Expr, tau_minus: Expr) -> Expr:
+        """Torque/fatigue coupling ``TL + fatigued fraction`` per half (dimensionless), shape
+        (n_halves,); OCPs bound it to [0, 1]."""
+        return self.target_loads(tau_plus, tau_minus) + self.fatigued(m)
+
+    def available_torque(self, mf: Expr) -> Expr:
+        """Signed torque each half can still produce, ``(1 - mf) * limit`` (N m), shape (n_halves,):
+        ``(1 - mf) * tau_upper`` for a plus half (>= 0), ``(1 - mf) * tau_lower`` for a minus half (<= 0).
+
+        Args:
+            mf: fatigued fraction of each half, shape (n_halves,) (see :meth:`split_states`).
+        """
+        mf = _column(mf, self.n_halves, "mf")
+        return (1 - mf) * ca.DM(self.signed_limits)
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{h.name}: {h.tau_limit:g} N m" for h in self._halves)
+        return f"SignedTorqueActuators({parts})"

@@ -1,0 +1,416 @@
+"""How an optimal control problem is solved: from a CasADi Opti formulation to IPOPT.
+
+The problem is written with ``casadi.Opti`` (see :mod:`fatigue_pin.ocp.transcription`); this module turns it
+into an ``nlpsol`` once and re-solves it with new parameter values as often as needed:
+
+1. ``opti.x, opti.p, opti.f, opti.g`` and the parametric ``opti.lbg, opti.ubg`` are taken from
+   the Opti stack, and ``casadi.detect_simple_bounds`` moves every constraint that bounds one
+   decision variable (state boxes, fixed initial state, task angles, end-of-window bounds) into
+   IPOPT's variable bounds ``lbx, ubx``; only dynamics gaps and coupling constraints stay in ``g``.
+2. With ``compile=True`` the NLP functions IPOPT needs (objective, constraints, gradient,
+   Jacobian, Hessian of the Lagrangian) are generated as C, compiled with the system C compiler
+   and loaded back. The shared library is cached on disk under a hash of the generated source, so
+   the compile cost is paid once per model and discretisation, not per solve or per process.
+3. A failed solve is a result, not an exception: the status, iteration count and last iterate
+   are returned.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.progress import Progress, as_reporter
+
+#: How a compiled NLP is built (see :class:`SolverOptions`).
+COMPILE_MODES = ("library", "nlp")
+#: IPOPT statuses counted as converged.
+CONVERGED_STATUSES = ("Solve_Succeeded",)
+
+#: IPOPT statuses that certify (locally) that the constraints cannot be met.
+INFEASIBLE_STATUSES = ("Infeasible_Problem_Detected", "Restoration_Failed")
+#: IPOPT statuses of a solve stopped by a limit before it converged or failed.
+LIMIT_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_WallTime_Exceeded", "Maximum_CpuTime_Exceeded")
+
+
+def failure_kind(status: str, constraint_violation: Sequence[float], tol: float) -> str:
+    """Why a solve ended, from IPOPT's status and its primal infeasibility per iteration.
+
+    Returns one of:
+        ``converged``;
+        ``infeasible``: IPOPT's infeasibility certificate (``Infeasible_Problem_Detected``) or a
+            restoration phase that could not reduce the constraint violation (``Restoration_Failed``);
+        ``infeasible-growing``: stopped by a limit with the constraint violation above ``tol`` and
+            larger at the end than at its lowest point by 10x (the iterates move away from
+            feasibility);
+        ``not-converged``: stopped by the iteration or time limit otherwise (feasible or
+            approaching it, so more iterations or another start might converge);
+        ``numerical``: any other status (``Error_In_Step_Computation``,
+            ``Search_Direction_Becomes_Too_Small``, ...): the step computation broke down.
+
+    Args:
+        status: IPOPT's ``return_status``.
+        constraint_violation: inf_pr of every iteration (IPOPT's scaled primal infeasibility).
+        tol: the acceptable constraint violation (``constr_viol_tol``).
+    """
+    if status in CONVERGED_STATUSES:
+        return "converged"
+    if status in INFEASIBLE_STATUSES:
+        return "infeasible"
+    if status in LIMIT_STATUSES:
+        viol = np.asarray(constraint_violation, dtype=float)
+        if viol.size and viol[-1] > tol and viol[-1] > 10 * np.min(viol):
+            return "infeasible-growing"
+        return "not-converged"
+    return "numerical"
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """IPOPT settings and how the NLP functions are evaluated.
+
+    Attributes:
+        linear_solver: IPOPT's linear solver (``mumps`` ships with CasADi; ``ma57``, ``ma27``,
+            ... need HSL libraries on the machine).
+        tol: IPOPT ``tol`` (overall convergence tolerance).
+        constr_viol_tol: IPOPT ``constr_viol_tol``.
+        max_iter: IPOPT iteration limit.
+        max_wall_time: IPOPT wall-time limit per solve (s); ``None`` for none.
+        print_level: IPOPT verbosity (0 silent, 5 IPOPT's default).
+        compile: generate C for the NLP functions and compile it (cached on disk).
+        compiler: C compiler command.
+        compiler_flags: flags of the compile step. Measured per IPOPT iteration on the 16-cycle
+            curl (2 cores): -O1 124 ms, -O2 115, -O3 116, -O2 -march=native 109, -O3
+            -march=native 100 ms; -O0 was 10x slower than -O1. Compiling takes 70-80 s at -O2/-O3
+            against 50-60 s at -O1. Code built for the native CPU is cached under a key that
+            includes the CPU, so a shared cache never serves it to another machine.
+        cache_dir: where compiled NLPs are kept (default ``$FATIGUE_PIN_CACHE`` or
+            ``~/.cache/fatigue_pin``).
+        mu_init: IPOPT's initial barrier parameter. 1 (IPOPT's default is 0.1): the first
+            barrier problems keep the torque halves away from their zero bound while the
+            trajectory is still far from feasible; 16-cycle curl from rest 98 iterations
+            against 119, and 10-20 % fewer across costs and horizons (docs/ocp.md).
+        perturb_dec_fact: how fast IPOPT lowers the Hessian regularisation after an
+            indefinite iteration. 0.6 (default 1/3) keeps it near the last working value, so
+            fewer extra factorisations are needed (16 cycles: 108 iterations at 90 ms against
+            119 at 95 ms). Both together: 16 cycles from rest 101 iterations, 10.1 s against
+            119, 11.9 s; 32 cycles 212, 44 s against 232, 54 s.
+        ipopt: further IPOPT options, passed as they are (they override the fields above).
+        compile_mode: with ``compile``: ``library`` (default) compiles the interval functions and
+            the derivatives IPOPT needs of them once per model (:mod:`fatigue_pin.ocp.compiled`,
+            cached under a key without the horizon) and lets CasADi's virtual machine assemble
+            any horizon around them: a new horizon builds in seconds. ``nlp`` generates and
+            compiles the whole NLP of each horizon (about a minute each on arm26) and is faster
+            per iteration on long horizons (docs/ocp.md, "Compiled code").
+        compile_jobs: compiler processes for a library (default: every core).
+        accept_acceptable: count IPOPT's ``Solved_To_Acceptable_Level`` as converged, as CasADi's
+            ``success`` flag does (and so the authors' code, docs/authors-code.md D11). Default
+            False: only ``Solve_Succeeded`` converges.
+        derivative_blocks: give IPOPT the constraint Jacobian and the Lagrangian's Hessian
+            assembled from per-interval blocks (:mod:`fatigue_pin.ocp.blocks`, compiled in the
+            library) instead of CasADi's assembly around the maps: the same values, far fewer
+            operations of the virtual machine per iteration. ``None`` (default): in ``library``
+            mode; ``True``: also without compiling (blocks evaluated by CasADi); ``False``: never.
+            Not used in ``nlp`` mode.
+    """
+
+    linear_solver: str = "mumps"
+    tol: float = 1e-6
+    constr_viol_tol: float = 1e-4
+    max_iter: int = 3000
+    max_wall_time: float | None = None
+    print_level: int = 0
+    compile: bool = True
+    compiler: str = "gcc"
+    compiler_flags: tuple[str, ...] = ("-O3", "-march=native")
+    cache_dir: Path | None = None
+    mu_init: float = 1.0
+    perturb_dec_fact: float = 0.6
+    ipopt: dict[str, Any] = field(default_factory=dict)
+    compile_mode: str = "library"
+    compile_jobs: int | None = None
+    accept_acceptable: bool = False
+    derivative_blocks: bool | None = None
+
+    def __post_init__(self) -> None:
+        if self.compile_mode not in COMPILE_MODES:
+            raise ParameterError(f"SolverOptions.compile_mode = {self.compile_mode!r}: expected one of {list(COMPILE_MODES)}")
+        if self.compile_jobs is not None and (isinstance(self.compile_jobs, bool) or not isinstance(self.compile_jobs, int)
+                                              or self.compile_jobs < 1):
+            raise ParameterError(f"SolverOptions.compile_jobs = {self.compile_jobs!r}: expected None or an integer >= 1")
+        for name in ("tol", "constr_viol_tol"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"SolverOptions.{name} = {value!r}: expected a finite tolerance > 0")
+        if int(self.max_iter) != self.max_iter or self.max_iter < 0:
+            raise ParameterError(f"SolverOptions.max_iter = {self.max_iter!r}: expected an integer >= 0")
+        if not (np.isfinite(self.mu_init) and self.mu_init > 0):
+            raise ParameterError(f"SolverOptions.mu_init = {self.mu_init!r}: expected a barrier parameter > 0")
+        if not (0 < self.perturb_dec_fact < 1):
+            raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
+        if self.max_wall_time is not None and not self.max_wall_time > 0:
+            raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
+
+    @property
+    def library_mode(self) -> bool:
+        """Whether the interval functions run from a per-model compiled library."""
+        return self.compile and self.compile_mode == "library"
+
+    def build_options(self):
+        """Compiler, flags and cache folder for :mod:`fatigue_pin.ocp.compiled`."""
+        from fatigue_pin.ocp.compiled import BuildOptions
+
+        return BuildOptions(compiler=self.compiler, flags=tuple(self.compiler_flags), cache_dir=self.resolved_cache_dir(),
+                            jobs=self.compile_jobs)
+
+    def ipopt_options(self) -> dict[str, Any]:
+        """The option dictionary passed to ``nlpsol('ipopt')``."""
+        ipopt: dict[str, Any] = {
+            "linear_solver": self.linear_solver,
+            "tol": self.tol,
+            "constr_viol_tol": self.constr_viol_tol,
+            "max_iter": int(self.max_iter),
+            "print_level": int(self.print_level),
+            "hessian_approximation": "exact",
+            "mu_init": float(self.mu_init),
+            "perturb_dec_fact": float(self.perturb_dec_fact),
+            "sb": "yes",
+        }
+        if self.max_wall_time is not None:
+            ipopt["max_wall_time"] = float(self.max_wall_time)
+        ipopt.update(self.ipopt)
+        return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+
+    def resolved_cache_dir(self) -> Path:
+        """Directory of the compiled-NLP cache."""
+        if self.cache_dir is not None:
+            return Path(self.cache_dir)
+        env = os.environ.get("FATIGUE_PIN_CACHE")
+        return Path(env) if env else Path.home() / ".cache" / "fatigue_pin"
+
+
+@dataclass
+class NlpResult:
+    """Outcome of one NLP solve (flat vectors in the reduced NLP's ordering).
+
+    Attributes:
+        x: last iterate, shape (n_x,).
+        lam_x, lam_g: multipliers of the variable bounds and of ``g``.
+        f: objective value.
+        status: IPOPT's return status (e.g. ``Solve_Succeeded``, ``Maximum_Iterations_Exceeded``).
+        success: whether ``status`` counts as converged.
+        iterations: IPOPT iterations.
+        wall_time_s: wall time of the solve call (s).
+        constraint_violation: IPOPT's primal infeasibility (inf_pr) at the last iterate.
+        kind: :func:`failure_kind` of the solve (``converged``, ``infeasible``, ...).
+    """
+
+    x: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+    f: float
+    status: str
+    success: bool
+    iterations: int
+    wall_time_s: float
+    constraint_violation: float = float("nan")
+    kind: str = ""
+
+
+def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
+    """Compile generated C into a shared library, atomically placed at ``target``, with
+    :func:`fatigue_pin.ocp.compiled.compile_shared`: ``-fopenmp`` when the code has OpenMP pragmas
+    (intervals mapped with ``parallel="openmp"``), dropped if the compiler lacks OpenMP, and a
+    ``-march=native`` build retried with portable flags if it fails."""
+    from fatigue_pin.ocp.compiled import compile_shared
+
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
+        tmp_so = Path(tmp) / target.name
+        compile_shared([source], tmp_so, options.build_options())
+        os.replace(tmp_so, target)
+
+
+def generate_nlp_source(solver: ca.Function, name: str, folder: Path) -> Path:
+    """Write the C of an ``nlpsol``'s NLP functions to ``folder/<name>.c`` and return its path.
+
+    The same code as ``solver.generate_dependencies(name + ".c")`` (the oracle, then every NLP
+    function IPOPT calls, in name order), written into ``folder`` without changing the process's
+    working directory.
+    """
+    gen = ca.CodeGenerator(f"{name}.c")
+    gen.add(solver.oracle())
+    for fname in solver.get_function():
+        gen.add(solver.get_function(fname))
+    gen.generate(str(folder) + os.sep)
+    return folder / f"{name}.c"
+
+
+def _host_key(options: SolverOptions) -> bytes:
+    """What the cache key adds for code tuned to this CPU (``-march=native``): its model and
+    instruction-set flags (:func:`fatigue_pin.ocp.compiled.host_key`), so a cache shared between
+    machines never hands one machine's library to another."""
+    from fatigue_pin.ocp.compiled import host_key
+
+    return host_key(options.compiler_flags)
+
+
+def simple_bounds(x: ca.MX, p: ca.MX, g: ca.MX, lbg: ca.MX, ubg: ca.MX,
+                  kept_rows: Sequence[int] = ()) -> tuple[list[int], ca.MX, ca.MX]:
+    """``casadi.detect_simple_bounds`` that leaves ``kept_rows`` of ``g`` in ``g``.
+
+    Returns:
+        The rows of ``g`` that stay constraints (those of ``kept_rows`` last), and the variable
+        bounds ``lbx, ubx`` (n_x,) as expressions of the parameters ``p``.
+    """
+    kept = sorted({int(i) for i in kept_rows})
+    if not kept:
+        gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g, lbg, ubg)
+        return [int(i) for i in gi], lbx, ubx
+    others = sorted(set(range(g.numel())) - set(kept))
+    gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g[others], lbg[others], ubg[others])
+    return [others[int(i)] for i in gi] + kept, lbx, ubx
+
+
+class NlpSolver:
+    """An Opti formulation turned into a reusable IPOPT solver.
+
+    Build it once per problem structure; call :meth:`solve` with new parameter values, initial
+    guesses and multipliers as often as needed. Nothing symbolic is rebuilt between solves.
+
+    Args:
+        opti: the formulated problem (variables, parameters, objective and constraints set).
+        options: solver settings.
+        name: a name for the generated code (the cache key also hashes the code itself).
+        derivatives: in library mode, called with the reduced NLP (:attr:`problem`); returns
+            nlpsol's own ``jac_g`` and ``hess_lag`` (:func:`fatigue_pin.ocp.blocks.nlp_derivatives`)
+            or None for CasADi's.
+        kept_rows: rows of ``opti.g`` kept as constraints even where they bound one variable.
+    """
+
+    def __init__(self, opti: ca.Opti, options: SolverOptions, name: str = "fatigue_ocp", progress: Progress = None,
+                 label: str = "the NLP", derivatives: Callable[[dict[str, ca.MX]], dict[str, ca.Function] | None] | None = None,
+                 kept_rows: Sequence[int] = ()) -> None:
+        t0 = time.perf_counter()
+        self._progress = as_reporter(progress)
+        self._label = label
+        self.options = options
+        self.opti = opti
+        x, p, f, g = opti.x, opti.p, opti.f, opti.g
+        lbg, ubg = opti.lbg, opti.ubg
+        gi, lbx, ubx = simple_bounds(x, p, g, lbg, ubg, kept_rows)
+        self.n_x = x.numel()
+        self.n_p = p.numel()
+        self.n_g = len(gi)
+        #: bounds of the reduced NLP as a function of the parameters
+        self._bounds = ca.Function("bounds", [p], [lbx, ubx, lbg[gi], ubg[gi]])
+        nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
+        self._name = name
+        #: the reduced NLP given to nlpsol: ``{"x", "p", "f", "g"}`` (g without the simple bounds)
+        self.problem = nlp
+        self.compile_time_s = 0.0
+        self.compiled_path: Path | None = None
+        opts = options.ipopt_options()
+        #: nlpsol's own derivative functions (``jac_g``, ``hess_lag``), if ``derivatives`` gave them
+        self.derivatives: dict[str, ca.Function] = {}
+        if options.compile and options.compile_mode == "nlp":
+            self._source: dict[str, Any] | str = self._compiled(ca.nlpsol(name, "ipopt", nlp, opts), name)
+        else:  # library mode: the interval functions in the graph are already compiled externals
+            self._source = nlp
+            self.derivatives = (derivatives(nlp) if derivatives is not None else None) or {}
+        #: one IPOPT instance per iteration limit (IPOPT options are fixed per instance)
+        self._solvers: dict[int, ca.Function] = {}
+        self._solver()
+        self.build_time_s = time.perf_counter() - t0
+
+    def stats(self, max_iter: int | None = None) -> dict[str, Any]:
+        """CasADi's statistics of the last solve with this iteration limit: IPOPT's per-iteration
+        record (``stats()["iterations"]``: inf_pr, inf_du, mu, regularization_size, alpha_pr, ...)
+        and the timings (``t_wall_nlp_hess_l``, ...)."""
+        return self._solver(max_iter).stats()
+
+    def converged(self, status: str) -> bool:
+        """Whether IPOPT's ``status`` counts as converged under these options."""
+        return status in CONVERGED_STATUSES or (self.options.accept_acceptable and status == "Solved_To_Acceptable_Level")
+
+    def _solver(self, max_iter: int | None = None) -> ca.Function:
+        """The IPOPT instance with iteration limit ``max_iter`` (default: the options')."""
+        key = int(self.options.max_iter if max_iter is None else max_iter)
+        if key not in self._solvers:
+            opts = self.options.ipopt_options()
+            opts["ipopt"]["max_iter"] = key
+            self._solvers[key] = ca.nlpsol(self._name, "ipopt", self._source, {**opts, **self.derivatives})
+        return self._solvers[key]
+
+    def _compiled(self, solver: ca.Function, name: str) -> str:
+        """Generate C for ``solver``'s NLP functions, compile it (or find it in the cache) and
+        return the shared library's path."""
+        t0 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp:
+            source = generate_nlp_source(solver, name, Path(tmp))
+            code = source.read_bytes()
+            key = code + " ".join(self.options.compiler_flags).encode() + _host_key(self.options)
+            digest = hashlib.sha256(key).hexdigest()[:20]
+            target = self.options.resolved_cache_dir() / f"{name}_{digest}.so"
+            if not target.exists():
+                with self._progress.task(f"compiling {self._label} (once per machine)", expected_s=len(code) / 100_000):
+                    _compile_shared(source, target, self.options)
+                self.compile_time_s = time.perf_counter() - t0
+        self.compiled_path = target
+        return str(target)
+
+    def bounds(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Numeric ``lbx, ubx, lbg, ubg`` of the reduced NLP for parameter vector ``p``."""
+        return tuple(np.asarray(v, dtype=float).reshape(-1) for v in self._bounds(p))  # type: ignore[return-value]
+
+    def solve(
+        self,
+        p: np.ndarray,
+        x0: np.ndarray,
+        lam_x0: np.ndarray | None = None,
+        lam_g0: np.ndarray | None = None,
+        max_iter: int | None = None,
+    ) -> NlpResult:
+        """Solve with parameters ``p`` from the initial guess ``x0`` (and multipliers, if given).
+
+        Args:
+            p: parameter vector, shape (n_p,) in Opti's parameter order.
+            x0: initial guess, shape (n_x,) in Opti's variable order.
+            lam_x0, lam_g0: initial multipliers (e.g. from a previous solve) for warm starts.
+            max_iter: iteration limit of this solve (default: the options').
+        """
+        lbx, ubx, lbg, ubg = self.bounds(p)
+        x0 = np.clip(np.asarray(x0, dtype=float).reshape(-1), lbx, ubx)
+        args: dict[str, Any] = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
+        if lam_x0 is not None:
+            args["lam_x0"] = lam_x0
+        if lam_g0 is not None:
+            args["lam_g0"] = lam_g0
+        t0 = time.perf_counter()
+        solver = self._solver(max_iter)
+        sol = solver(**args)
+        wall = time.perf_counter() - t0
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        inf_pr = list(stats.get("iterations", {}).get("inf_pr", []))
+        return NlpResult(
+            x=np.asarray(sol["x"], dtype=float).reshape(-1),
+            lam_x=np.asarray(sol["lam_x"], dtype=float).reshape(-1),
+            lam_g=np.asarray(sol["lam_g"], dtype=float).reshape(-1),
+            f=float(sol["f"]),
+            status=status,
+            success=self.converged(status),
+            iterations=int(stats.get("iter_count", -1)),
+            wall_time_s=wall,
+            constraint_violation=float(inf_pr[-1]) if inf_pr else float("nan"),
+            kind="converged" if self.converged(status) else failure_kind(status, inf_pr, self.options.constr_viol_tol),
+        )

@@ -1,0 +1,507 @@
+"""What the body must do every cycle: a set of constraints placed on the nodes of the cycle.
+
+A task is a list of constraint items, each ``(expression of the state at some nodes, lower,
+upper)``. Items that bound one state entry (a joint at a phase, a joint range) become variable
+bounds of the NLP (cheap, and IPOPT handles them as simple bounds); items with a general
+expression (``expression`` of :class:`StateConstraint`) become constraint rows whose bounds are
+NLP parameters. Kinds:
+
+* :class:`JointTarget`: joint ``joint`` at ``value`` (+- ``tolerance``) at phase ``at`` of every
+  cycle (the curl is two of these: the elbow at 15 deg at phase 0 and at 150 deg at phase 0.5);
+* :class:`JointRange`: joint ``joint`` within ``[lower, upper]`` at every node;
+* :class:`StateConstraint`: any expression of the state (a ``casadi.Function`` of x, built by the
+  caller from the model) within bounds at a phase, or at every node;
+* :class:`FrameTarget`, :class:`FramePlane`, :class:`FrameOrientation`: Cartesian items (a frame
+  at a point within a ball or box, a frame above a plane, a frame's orientation); each builds its
+  :class:`StateConstraint` from the model's frame kinematics (``constraint(model, layout)``,
+  gathered by :meth:`Task.expression_constraints`);
+* the cyclic end condition of a sliding-horizon window is added by the horizon driver
+  (``end_tolerance`` of :class:`fatigue_pin.ocp.transcription.Ocp`).
+
+Phases are fractions of the cycle in [0, 1); ``at * intervals_per_cycle`` must be a node.
+A target at phase 0 also applies to the end of the last cycle (node N, or N + ``final_node_offset``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence, Union
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.core.errors import TaskError
+
+
+def _finite(owner: str, name: str, value: object, what: str = "a finite number") -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(float(value)):
+        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}")
+    return float(value)
+
+
+def _phase(owner: str, at: object) -> float:
+    x = _finite(owner, "at", at, "a phase of the cycle in [0, 1)")
+    if not 0.0 <= x < 1.0:
+        raise TaskError(f"{owner}.at = {at!r}: expected a phase of the cycle in [0, 1)")
+    return x
+
+
+@dataclass(frozen=True)
+class JointTarget:
+    """Joint ``joint`` at ``value`` (rad, or m for a prismatic joint) within ``+- tolerance`` at
+    phase ``at`` of every cycle."""
+
+    joint: str
+    value: float
+    at: float = 0.0
+    tolerance: float = 0.0
+
+    def __post_init__(self) -> None:
+        owner = f"JointTarget({self.joint!r})"
+        object.__setattr__(self, "value", _finite(owner, "value", self.value))
+        object.__setattr__(self, "at", _phase(owner, self.at))
+        tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0")
+        if tol < 0:
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a finite tolerance >= 0")
+        object.__setattr__(self, "tolerance", tol)
+
+
+@dataclass(frozen=True)
+class JointRange:
+    """Joint ``joint`` within ``[lower, upper]`` (rad or m) at every node."""
+
+    joint: str
+    lower: float
+    upper: float
+
+    def __post_init__(self) -> None:
+        owner = f"JointRange({self.joint!r})"
+        lo = _finite(owner, "lower", self.lower)
+        hi = _finite(owner, "upper", self.upper)
+        if lo > hi:
+            raise TaskError(f"{owner}: lower = {lo!r} > upper = {hi!r}; expected lower <= upper")
+        object.__setattr__(self, "lower", lo)
+        object.__setattr__(self, "upper", hi)
+
+
+@dataclass(frozen=True)
+class StateConstraint:
+    """``lower <= expression(x) <= upper`` at phase ``at`` of every cycle, or at every node
+    (``at = None``).
+
+    Attributes:
+        name: a label (used in messages and results).
+        expression: a ``casadi.Function`` of the state x (nx,) with one output (m,); build it from
+            the model (e.g. a frame position from :mod:`fatigue_pin.robot.model`'s kinematics).
+        lower, upper: bounds, shape (m,) (use +-inf for one-sided bounds).
+        at: phase in [0, 1), or None for every node.
+    """
+
+    name: str
+    expression: ca.Function
+    lower: Sequence[float]
+    upper: Sequence[float]
+    at: float | None = None
+
+    def __post_init__(self) -> None:
+        owner = f"StateConstraint({self.name!r})"
+        if not isinstance(self.expression, ca.Function) or self.expression.n_in() != 1 or self.expression.n_out() != 1:
+            raise TaskError(f"{owner}.expression: expected a casadi.Function of the state x with one output")
+        m = self.expression.size1_out(0) * self.expression.size2_out(0)
+        lo = np.broadcast_to(np.asarray(self.lower, dtype=float), (m,)).copy()
+        hi = np.broadcast_to(np.asarray(self.upper, dtype=float), (m,)).copy()
+        if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo > hi):
+            raise TaskError(f"{owner}: bounds {lo.tolist()}, {hi.tolist()}: expected lower <= upper, no NaN")
+        object.__setattr__(self, "lower", tuple(lo))
+        object.__setattr__(self, "upper", tuple(hi))
+        if self.at is not None:
+            object.__setattr__(self, "at", _phase(owner, self.at))
+
+
+def _vector(owner: str, name: str, value: object, n: int = 3, what: str = "3 finite numbers") -> tuple[float, ...]:
+    try:
+        a = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}") from None
+    if a.size != n or not np.all(np.isfinite(a)):
+        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}")
+    return tuple(float(x) for x in a)
+
+
+def _function_name(text: str) -> str:
+    """A valid casadi.Function name from a label (letters, digits, single underscores)."""
+    import re
+
+    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", text)).strip("_")
+    return name if name[:1].isalpha() else f"f_{name}"
+
+
+def _check_frame(owner: str, model, frame: str) -> None:
+    from fatigue_pin.core.errors import ModelError
+    from fatigue_pin.robot.kinematics import frame_id
+
+    try:
+        frame_id(model.pin_model, frame)
+    except ModelError as exc:
+        raise TaskError(f"{owner}: {exc}") from None
+
+
+#: shapes of the tolerance region of a :class:`FrameTarget`
+FRAME_TARGET_SHAPES = ("ball", "box")
+
+
+@dataclass(frozen=True)
+class FrameTarget:
+    """The origin of frame ``frame`` at ``position`` (m, world frame) at phase ``at`` of every
+    cycle, within ``tolerance`` (m): a ball of that radius (``shape = "ball"``) or a box of that
+    half-width (``"box"``). A zero tolerance pins the point (three equality rows).
+
+    It becomes a :class:`StateConstraint` (:meth:`constraint`) on the frame position from
+    Pinocchio's kinematics on CasADi symbols (:meth:`RobotModel.frame_position`). The ball is the
+    row ``(|p - position|^2 - tolerance^2) / (2 tolerance) <= 0``, about ``|p - position| -
+    tolerance`` near its surface, so the solver's constraint tolerance is in metres.
+    """
+
+    frame: str
+    position: tuple[float, float, float]
+    at: float = 0.0
+    tolerance: float = 0.0
+    shape: str = "ball"
+
+    def __post_init__(self) -> None:
+        owner = f"FrameTarget({self.frame!r})"
+        object.__setattr__(self, "position", _vector(owner, "position", self.position, what="3 finite numbers (m, world frame)"))
+        object.__setattr__(self, "at", _phase(owner, self.at))
+        tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0 (m)")
+        if tol < 0:
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a finite tolerance >= 0 (m)")
+        object.__setattr__(self, "tolerance", tol)
+        if self.shape not in FRAME_TARGET_SHAPES:
+            raise TaskError(f"{owner}.shape = {self.shape!r}: expected one of {list(FRAME_TARGET_SHAPES)}")
+
+    @property
+    def name(self) -> str:
+        return f"{self.frame}_position_at_{self.at:g}"
+
+    def distance(self, p: np.ndarray) -> float:
+        """How far ``p`` (3,) is outside the tolerance region (m; <= 0 inside)."""
+        d = np.asarray(p, dtype=float) - np.asarray(self.position)
+        if self.shape == "box" or self.tolerance == 0.0:
+            return float(np.max(np.abs(d)) - self.tolerance)
+        return float(np.linalg.norm(d) - self.tolerance)
+
+    def constraint(self, model, layout) -> StateConstraint:
+        x = ca.SX.sym("x", layout.nx)
+        d = model.frame_position(self.frame)(x[layout.q]) - ca.DM(self.position)
+        tol = self.tolerance
+        if self.shape == "box" or tol == 0.0:
+            expr, lower, upper = d, -tol, tol
+        else:
+            expr, lower, upper = (ca.dot(d, d) - tol * tol) / (2 * tol), -np.inf, 0.0
+        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [expr]), lower, upper, self.at)
+
+    def check(self, model, q_init: np.ndarray | None = None) -> None:
+        """Unknown frame, or a target out of the frame's reach (:func:`fatigue_pin.robot.kinematics.reach`)."""
+        from fatigue_pin.robot.kinematics import reach
+
+        owner = f"task frame target of {self.frame!r}"
+        _check_frame(owner, model, self.frame)
+        centre, radius = reach(model.pin_model, self.frame)
+        distance = float(np.linalg.norm(np.asarray(self.position) - centre))
+        if distance - self.tolerance * math.sqrt(3) > radius:
+            raise TaskError(
+                f"{owner}: position {list(self.position)} m is out of reach: {distance:.3f} m from the base of its chain at "
+                f"{np.round(centre, 3).tolist()}, which reaches at most {radius:.3f} m (the sum of its link lengths)"
+            )
+        if q_init is not None and self.at == 0.0:  # node 0 is the initial state: it must meet the target
+            from fatigue_pin.robot.kinematics import frame_placement
+
+            off = self.distance(frame_placement(model.pin_model, self.frame, q_init).translation)
+            if off > 1e-9:
+                raise TaskError(
+                    f"{owner}: the initial configuration puts the frame {off:.4f} m outside its phase-0 target "
+                    f"{list(self.position)} +- {self.tolerance} m; set task.q_init to a posture that meets it "
+                    "(fatigue_pin.ocp.guesses.solve_ik finds one)"
+                )
+
+
+@dataclass(frozen=True)
+class FrameOrientation:
+    """Frame ``frame`` oriented as ``rotation`` (3 x 3, world frame; or 3 roll-pitch-yaw angles,
+    rad) within ``tolerance`` (rad, > 0) at phase ``at`` of every cycle: the row
+    ``cos(angle(R, rotation)) - cos(tolerance) >= 0``."""
+
+    frame: str
+    rotation: tuple[float, ...]
+    at: float = 0.0
+    tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        owner = f"FrameOrientation({self.frame!r})"
+        a = np.asarray(self.rotation, dtype=float)
+        if a.size == 3:
+            import pinocchio as pin
+
+            a = pin.rpy.rpyToMatrix(*_vector(owner, "rotation", a))
+        R = np.asarray(_vector(owner, "rotation", a, 9, "a rotation matrix (3 x 3) or 3 roll-pitch-yaw angles (rad)")).reshape(3, 3)
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise TaskError(f"{owner}.rotation = {self.rotation!r}: expected a rotation matrix (orthonormal, det 1)")
+        object.__setattr__(self, "rotation", tuple(R.reshape(-1)))
+        object.__setattr__(self, "at", _phase(owner, self.at))
+        tol = _finite(owner, "tolerance", self.tolerance, "an angle in (0, pi] (rad)")
+        if not 0 < tol <= math.pi:
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected an angle in (0, pi] (rad)")
+        object.__setattr__(self, "tolerance", tol)
+
+    @property
+    def name(self) -> str:
+        return f"{self.frame}_orientation_at_{self.at:g}"
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return np.asarray(self.rotation).reshape(3, 3)
+
+    def constraint(self, model, layout) -> StateConstraint:
+        x = ca.SX.sym("x", layout.nx)
+        R = model.frame_rotation(self.frame)(x[layout.q])
+        cos_angle = (ca.trace(ca.DM(self.matrix).T @ R) - 1) / 2
+        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [cos_angle - math.cos(self.tolerance)]), 0.0, np.inf, self.at)
+
+    def check(self, model, q_init: np.ndarray | None = None) -> None:
+        _check_frame(f"task orientation target of {self.frame!r}", model, self.frame)
+
+
+@dataclass(frozen=True)
+class FramePlane:
+    """The origin of frame ``frame`` on the positive side of a plane: ``normal . p(q) >= offset``
+    (m, world frame; ``normal`` is made unit) at every node (``at = None``), e.g. "the hand
+    stays above the table", or at phase ``at`` only."""
+
+    frame: str
+    normal: tuple[float, float, float]
+    offset: float
+    at: float | None = None
+
+    def __post_init__(self) -> None:
+        owner = f"FramePlane({self.frame!r})"
+        n = np.asarray(_vector(owner, "normal", self.normal, what="3 finite numbers, not all 0"))
+        if np.linalg.norm(n) < 1e-12:
+            raise TaskError(f"{owner}.normal = {self.normal!r}: expected 3 finite numbers, not all 0")
+        object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
+        object.__setattr__(self, "offset", _finite(owner, "offset", self.offset, "a finite distance (m)"))
+        if self.at is not None:
+            object.__setattr__(self, "at", _phase(owner, self.at))
+
+    @property
+    def name(self) -> str:
+        return f"{self.frame}_plane" + ("" if self.at is None else f"_at_{self.at:g}")
+
+    def height(self, p: np.ndarray) -> float:
+        """Signed distance of ``p`` (3,) above the plane (m)."""
+        return float(np.dot(self.normal, p) - self.offset)
+
+    def constraint(self, model, layout) -> StateConstraint:
+        x = ca.SX.sym("x", layout.nx)
+        p = model.frame_position(self.frame)(x[layout.q])
+        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [ca.dot(ca.DM(self.normal), p)]), self.offset, np.inf, self.at)
+
+    def check(self, model, q_init: np.ndarray | None = None) -> None:
+        """Unknown frame, or an initial configuration below the plane (a bound over every node)."""
+        owner = f"task plane of {self.frame!r}"
+        _check_frame(owner, model, self.frame)
+        if q_init is not None and self.at is None:
+            from fatigue_pin.robot.kinematics import frame_placement
+
+            h = self.height(frame_placement(model.pin_model, self.frame, q_init).translation)
+            if h < -1e-9:
+                raise TaskError(f"{owner}: the initial configuration puts the frame {-h:.4f} m below the plane "
+                                f"normal {list(self.normal)} . p >= {self.offset}; expected q_init on its positive side")
+
+
+TaskItem = Union[JointTarget, JointRange, StateConstraint, FrameTarget, FrameOrientation, FramePlane]
+
+
+@dataclass(frozen=True)
+class Task:
+    """A cyclic task: the cycle's timing, its constraints and the initial posture.
+
+    Attributes:
+        cycle_duration: duration of one cycle (s).
+        intervals_per_cycle: shooting intervals per cycle.
+        items: the constraints (:class:`JointTarget`, :class:`JointRange`, :class:`StateConstraint`).
+        q_init: initial configuration (rad or m), shape (nq,); ``None``: every joint at 0, or at
+            its phase-0 target where it has one.
+        final_node_offset: targets at phase 0 apply to the end of the last cycle at node
+            N + offset (0, or -1 to impose it one node before the end).
+    """
+
+    cycle_duration: float
+    intervals_per_cycle: int
+    items: tuple[TaskItem, ...] = ()
+    q_init: tuple[float, ...] | None = None
+    final_node_offset: int = 0
+
+    def __post_init__(self) -> None:
+        d = _finite("Task", "cycle_duration", self.cycle_duration, "a duration in seconds > 0")
+        if d <= 0:
+            raise TaskError(f"Task.cycle_duration = {self.cycle_duration!r}: expected a duration in seconds > 0")
+        object.__setattr__(self, "cycle_duration", d)
+        n = self.intervals_per_cycle
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer >= 1")
+        object.__setattr__(self, "intervals_per_cycle", int(n))
+        object.__setattr__(self, "items", tuple(self.items))
+        for item in self.items:
+            if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and not callable(getattr(item, "constraint", None)):
+                raise TaskError(f"task item {item!r}: expected a JointTarget, JointRange, StateConstraint or an item "
+                                "with a constraint(model, layout) method (FrameTarget, FramePlane, FrameOrientation)")
+            at = getattr(item, "at", None)
+            if at is not None and abs(at * n - round(at * n)) > 1e-9:
+                raise TaskError(
+                    f"task phase at = {at!r} is not a node: at * intervals_per_cycle = {at * n:g}; expected a whole number"
+                )
+        if self.final_node_offset not in (0, -1):
+            raise TaskError(f"Task.final_node_offset = {self.final_node_offset!r}: expected 0 or -1")
+        if self.q_init is not None:
+            q = tuple(_finite("Task", "q_init", v, "a list of finite joint positions") for v in np.ravel(self.q_init))
+            object.__setattr__(self, "q_init", q)
+
+    @property
+    def dt(self) -> float:
+        """Length of one shooting interval (s)."""
+        return self.cycle_duration / self.intervals_per_cycle
+
+    @property
+    def joint_targets(self) -> tuple[JointTarget, ...]:
+        return tuple(i for i in self.items if isinstance(i, JointTarget))
+
+    @property
+    def joint_ranges(self) -> tuple[JointRange, ...]:
+        return tuple(i for i in self.items if isinstance(i, JointRange))
+
+    @property
+    def state_constraints(self) -> tuple[StateConstraint, ...]:
+        return tuple(i for i in self.items if isinstance(i, StateConstraint))
+
+    @property
+    def frame_targets(self) -> tuple[FrameTarget, ...]:
+        return tuple(i for i in self.items if isinstance(i, FrameTarget))
+
+    def expression_constraints(self, model, layout) -> tuple[StateConstraint, ...]:
+        """Every constraint row of the task, in item order: its :class:`StateConstraint` items and
+        the ones its other items build from the model (``item.constraint(model, layout)``: frame
+        targets, planes, orientations). Names are made unique (``_2``, ``_3``, ...)."""
+        out: list[StateConstraint] = []
+        seen: dict[str, int] = {}
+        for item in self.items:
+            if isinstance(item, StateConstraint):
+                sc = item
+            elif callable(getattr(item, "constraint", None)):
+                sc = item.constraint(model, layout)
+            else:
+                continue
+            seen[sc.name] = seen.get(sc.name, 0) + 1
+            if seen[sc.name] > 1:
+                sc = StateConstraint(f"{sc.name}_{seen[sc.name]}", sc.expression, sc.lower, sc.upper, sc.at)
+            out.append(sc)
+        return tuple(out)
+
+    def nodes(self, at: float | None, n_intervals: int) -> list[int]:
+        """Nodes of a horizon of ``n_intervals`` intervals at phase ``at`` of every cycle (every
+        node for ``None``); phase 0 includes the final node (N + ``final_node_offset``)."""
+        n = self.intervals_per_cycle
+        if at is None:
+            return list(range(n_intervals + 1))
+        offset = int(round(at * n))
+        nodes = list(range(offset, n_intervals, n))
+        if offset == 0 and n_intervals > 0:
+            nodes.append(n_intervals + self.final_node_offset)
+        return nodes
+
+    def check(self, model) -> None:
+        """Raise TaskError if the task does not fit ``model`` (a :class:`~fatigue_pin.robot.model.RobotModel`):
+        unknown joints, targets or ranges outside the joint limits, a bad initial posture."""
+        for item in self.items:
+            if isinstance(item, (JointTarget, JointRange)):
+                if item.joint not in model.joint_names:
+                    raise TaskError(f"task joint {item.joint!r} is not in model {model.name!r}; its joints are {list(model.joint_names)}")
+                j = model.joint_names.index(item.joint)
+                lo, hi = model.q_lower[j], model.q_upper[j]
+                values = (item.value - item.tolerance, item.value + item.tolerance) if isinstance(item, JointTarget) else (item.lower, item.upper)
+                label = "target" if isinstance(item, JointTarget) else "range"
+                if isinstance(item, JointTarget) and not (lo <= item.value <= hi):
+                    raise TaskError(f"task {label} {item.value!r} of joint {item.joint!r} is outside its range [{lo}, {hi}]")
+                if isinstance(item, JointRange) and (values[1] < lo or values[0] > hi):
+                    raise TaskError(f"task range {list(values)} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
+            elif isinstance(item, StateConstraint):
+                pass  # checked against the layout when the OCP is built
+        q = self.initial_configuration(model)
+        bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
+        if bad:
+            raise TaskError(f"task initial configuration q_init = {q.tolist()} is outside the range of joints {bad}")
+        for item in self.items:  # frame targets, planes, orientations: unknown frames, reach
+            if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and callable(getattr(item, "check", None)):
+                item.check(model, q)
+
+    def initial_configuration(self, model) -> np.ndarray:
+        """Initial q (rad or m), shape (nq,)."""
+        if self.q_init is None:
+            q = np.zeros(model.nq)
+            for t in self.joint_targets:
+                if t.at == 0.0 and t.joint in model.joint_names:
+                    q[model.joint_names.index(t.joint)] = t.value
+            return q
+        q = np.asarray(self.q_init, dtype=float).reshape(-1)
+        if q.size != model.nq:
+            raise TaskError(f"task q_init has {q.size} entries; model {model.name!r} has nq = {model.nq}")
+        return q
+
+    def reference_trajectory(self, model, t: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A smooth motion through the joint targets, for initial guesses.
+
+        Each joint with targets follows a half-cosine from one target to the next in phase
+        order (periodic over the cycle); the others stay at ``q0``. For the curl (15 deg at phase
+        0, 150 deg at 0.5) this is ``low + (high - low) (1 - cos(2 pi t / T)) / 2``.
+
+        Returns:
+            q (len(t), nq), qdot (len(t), nv), qddot (len(t), nv).
+        """
+        T = self.cycle_duration
+        q = np.tile(np.asarray(q0, dtype=float), (t.size, 1))
+        qd = np.zeros((t.size, model.nv))
+        qdd = np.zeros((t.size, model.nv))
+        by_joint: dict[str, list[JointTarget]] = {}
+        for tgt in self.joint_targets:
+            by_joint.setdefault(tgt.joint, []).append(tgt)
+        phase = np.mod(t / T, 1.0)
+        for joint, targets in by_joint.items():
+            j = model.joint_names.index(joint)
+            pts = sorted(targets, key=lambda x: x.at)
+            if len(pts) == 1:
+                q[:, j] = pts[0].value
+                continue
+            ats = [p.at for p in pts] + [pts[0].at + 1.0]
+            vals = [p.value for p in pts] + [pts[0].value]
+            ph = np.where(phase < ats[0], phase + 1.0, phase)
+            for k in range(len(pts)):
+                sel = (ph >= ats[k]) & (ph < ats[k + 1])
+                span = (ats[k + 1] - ats[k]) * T
+                s = (ph[sel] - ats[k]) * T / span  # 0..1 within the segment
+                a, b = vals[k], vals[k + 1]
+                w = math.pi / span
+                q[sel, j] = a + (b - a) * 0.5 * (1 - np.cos(math.pi * s))
+                qd[sel, j] = (b - a) * 0.5 * w * np.sin(math.pi * s)
+                qdd[sel, j] = (b - a) * 0.5 * w * w * np.cos(math.pi * s)
+        return q, qd, qdd
+
+
+def joint_target_pairs(task: Task, model, n_intervals: int) -> list[tuple[int, int, float, float]]:
+    """``(node, row of q, lower, upper)`` of every joint target over a horizon."""
+    out = []
+    for tgt in task.joint_targets:
+        j = model.joint_names.index(tgt.joint)
+        for node in task.nodes(tgt.at, n_intervals):
+            out.append((node, j, tgt.value - tgt.tolerance, tgt.value + tgt.tolerance))
+    return sorted(out, key=lambda r: (r[0], r[1]))
+

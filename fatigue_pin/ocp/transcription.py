@@ -1,0 +1,743 @@
+"""How a problem becomes an NLP: direct multiple shooting with RK4, on a grid of nodes.
+
+For a :class:`~fatigue_pin.ocp.problem.Problem` and a horizon of ``n_cycles`` cycles (N = n_cycles *
+intervals_per_cycle intervals of length dt), :class:`Ocp` builds::
+
+    x_{k+1} = F(x_k, u_k)                         gaps, k = 0..N-1 (rigid body and fatigue
+                                                  integrated by separate RK4 functions)
+    T_k = tau_plus_k + tau_minus_k                auxiliary joint torque (halves the Hessian)
+    0 <= TL_h(u_k) + m_fatigued,h(x_k) <= 1       every half h, every node (u_N := u_{N-1})
+    X_lb <= x_k <= X_ub                            model bounds, [0, 1] on fatigue states, the
+                                                  initial state at node 0, joint targets at
+                                                  their nodes, joint ranges, and (sliding
+                                                  windows) the cyclic end box at node N
+    lower <= h(x_k) <= upper                       state constraints of the task at their nodes
+    u in the halves' torque ranges
+    J = sum_k dt * sum_i w_i L_i(x_k, u_k, u_{k-1})
+
+Every weight, fatigue parameter, bound and the initial state is a *parameter* of the NLP, so
+one NLP (and one compiled library) per horizon serves every cost, stabiliser, window and
+initial state. Parameters are addressed by name (:class:`ParameterLayout`).
+
+Design notes (measured on arm26, docs/ocp.md): the rigid-body RK4 is built from MX calls of the
+SX dynamics (fast to compile), the fatigue RK4 is SX; IPOPT sees scaled variables (velocities
+divided by their bound, torques by their limit). The interval functions are ``map``-ped and the
+maps recorded (:class:`~fatigue_pin.ocp.blocks.MappedCall`), so that in library mode IPOPT's
+Jacobian and Hessian are assembled from their per-interval derivative blocks.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from typing import Mapping
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.ocp.blocks import BlockPair, MappedCall, block_functions, differentiated_inputs, nlp_derivatives
+from fatigue_pin.ocp.costs import IntervalVariables
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.ocp.problem import Problem, StateLayout
+from fatigue_pin.core.progress import Progress
+from fatigue_pin.ocp.solver import NlpResult, NlpSolver, SolverOptions, simple_bounds
+from fatigue_pin.ocp.task import joint_target_pairs
+
+#: Integrators of the shooting intervals.
+INTEGRATORS = ("rk4",)
+#: How interval functions are mapped over the horizon.
+MAP_MODES = ("auto", "serial", "openmp", "thread")
+
+
+@dataclass(frozen=True)
+class Transcription:
+    """How the problem is discretised (not what it is, nor how it is solved).
+
+    Attributes:
+        substeps: integrator steps per shooting interval.
+        integrator: ``rk4``.
+        scaling: IPOPT works on scaled variables (velocities / their bound, torques / their
+            limit): fewer iterations, same solution.
+        parallel: how interval functions are mapped: ``serial``, ``thread`` (CasADi's VM on every
+            core), ``openmp`` (generated C built with ``-fopenmp``), ``auto`` (``openmp`` in
+            ``nlp`` mode, ``serial`` uncompiled; library mode: :attr:`Ocp.map_mode`).
+        expand: integrate the rigid body as one expanded SX function per interval (slow to
+            compile; kept for comparisons).
+        torque_variable: the joint torque T = tau_plus + tau_minus (nv, N) is a decision variable
+            of its own, tied by an equality row, and the rigid body takes T; ``False`` puts the
+            sum of the halves into the rigid body directly (how the paper's code does it).
+        target_rows: joint targets as equality rows in g instead of fixed variables (bounds
+            lb = ub); a target at node 0 then duplicates the fixed initial state (how the paper's
+            code does it). Same feasible set, other KKT systems: for comparisons.
+    """
+
+    substeps: int = 5
+    integrator: str = "rk4"
+    scaling: bool = True
+    parallel: str = "auto"
+    expand: bool = False
+    torque_variable: bool = True
+    target_rows: bool = False
+
+    def __post_init__(self) -> None:
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, np.integer)) or self.substeps < 1:
+            raise ParameterError(f"Transcription.substeps = {self.substeps!r}: expected an integer >= 1")
+        if self.integrator not in INTEGRATORS:
+            raise ParameterError(f"Transcription.integrator = {self.integrator!r}: expected one of {list(INTEGRATORS)}")
+        if self.parallel not in MAP_MODES:
+            raise ParameterError(f"Transcription.parallel = {self.parallel!r}: expected one of {list(MAP_MODES)}")
+        for name in ("scaling", "expand", "torque_variable", "target_rows"):
+            if not isinstance(getattr(self, name), bool):
+                raise ParameterError(f"Transcription.{name} = {getattr(self, name)!r}: expected true or false")
+
+    def map_mode(self, compiled: bool) -> str:
+        if self.parallel == "auto":
+            return "openmp" if compiled else "serial"
+        return self.parallel
+
+
+def rk4(f: ca.Function, x: ca.MX | ca.SX, args: tuple, h: float, steps: int) -> ca.MX | ca.SX:
+    """``steps`` classical Runge-Kutta steps of length ``h`` of ``xdot = f(x, *args)``."""
+    for _ in range(steps):
+        k1 = f(x, *args)
+        k2 = f(x + h / 2 * k1, *args)
+        k3 = f(x + h / 2 * k2, *args)
+        k4 = f(x + h * k3, *args)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+class IntervalFunctions:
+    """The functions of one shooting interval, built once per problem structure and dt.
+
+    With piecewise-constant controls the rigid-body states (q, qdot) and the fatigue states m
+    evolve independently over an interval, so RK4 on the whole state equals RK4 on each part;
+    integrating them separately keeps the derivatives (and the exact Hessian) small.
+
+    Attributes:
+        f_rb: ``f_rb(y, tau) -> ydot`` with y = (q, qdot): Pinocchio's ABA (SX).
+        f_fatigue: ``f_fatigue(m, u, p) -> mdot`` of all actuator halves (SX).
+        F_rb: ``F_rb(y, tau) -> y_next``, RK4 over one interval.
+        F_fatigue: ``F_fatigue(m, u, p) -> m_next``, RK4 over one interval (SX).
+        coupling: ``coupling(x, u) -> TL + m_fatigued`` of every half.
+        terms: cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_terms,)``.
+    """
+
+    def __init__(self, problem: Problem, transcription: Transcription, fatigue_calls: bool = False) -> None:
+        """``fatigue_calls``: integrate the fatigue states as MX calls of the SX right-hand side
+        (for a compiled library: derivative code about 7 times smaller, same values) instead of
+        one SX function."""
+        model, actuators, task = problem.model, problem.actuators, problem.task
+        layout = problem.layout
+        self.layout = layout
+        nx, nu, nv, nq = layout.nx, layout.nu, layout.nv, layout.nq
+        substeps = transcription.substeps
+        h = task.dt / substeps
+
+        y = ca.SX.sym("y", nq + nv)
+        tau = ca.SX.sym("tau", nv)
+        self.f_rb = ca.Function("f_rb", [y, tau], [ca.vertcat(y[nq:], model.aba(y[:nq], y[nq:], tau))], ["y", "tau"], ["ydot"])
+        if transcription.expand:
+            self.F_rb = ca.Function("F_rb", [y, tau], [rk4(self.f_rb, y, (tau,), h, substeps)], ["y", "tau"], ["y_next"])
+        else:
+            # RK4 as MX calls of the SX f_rb: its derivative code stays small (fast to compile)
+            y_mx, tau_mx = ca.MX.sym("y", nq + nv), ca.MX.sym("tau", nv)
+            self.F_rb = ca.Function("F_rb", [y_mx, tau_mx], [rk4(self.f_rb, y_mx, (tau_mx,), h, substeps)], ["y", "tau"], ["y_next"])
+
+        m = ca.SX.sym("m", actuators.n_states)
+        u = ca.SX.sym("u", nu)
+        p = ca.SX.sym("p_fatigue", actuators.n_params)
+        self.f_fatigue = ca.Function("f_fatigue", [m, u, p], [actuators.fatigue_rates(m, u[:nv], u[nv:], p)], ["m", "u", "p"], ["mdot"])
+        if fatigue_calls:
+            m_mx, u_mx, p_mx = ca.MX.sym("m", m.numel()), ca.MX.sym("u", nu), ca.MX.sym("p_fatigue", p.numel())
+            self.F_fatigue = ca.Function("F_fatigue", [m_mx, u_mx, p_mx], [rk4(self.f_fatigue, m_mx, (u_mx, p_mx), h, substeps)],
+                                         ["m", "u", "p"], ["m_next"])
+        else:
+            self.F_fatigue = ca.Function("F_fatigue", [m, u, p], [rk4(self.f_fatigue, m, (u, p), h, substeps)], ["m", "u", "p"], ["m_next"])
+        self.library = None  # the compiled library once :meth:`use` has swapped the functions
+        #: derivative blocks per interval function (:mod:`fatigue_pin.ocp.blocks`), once built
+        self.blocks: dict[str, BlockPair] = {}
+
+        x = ca.SX.sym("x", nx)
+        u_prev = ca.SX.sym("u_prev", nu)
+        self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(x[layout.m], u[:nv], u[nv:])], ["x", "u"], ["TL_plus_mf"])
+        v = IntervalVariables(x, u, u_prev, layout, model, actuators)
+        integrands = [term.expression(v) for term in problem.costs]
+        terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
+        self.terms = ca.Function("terms", [x, u, u_prev], [terms], ["x", "u", "u_prev"], ["terms"])
+
+    def library_functions(self) -> list[ca.Function]:
+        """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
+        return [self.F_rb, self.F_fatigue, self.coupling, self.terms]
+
+    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]]) -> None:
+        """Build the derivative blocks (:func:`fatigue_pin.ocp.blocks.block_functions`) of the
+        library functions named in ``diffs``, for the inputs given there (those that depend on
+        the decision variables), from the original functions."""
+        for f in self.library_functions():
+            if f.name() in diffs:
+                self.blocks[f.name()] = block_functions(f, diffs[f.name()])
+
+    def block_functions(self) -> list[ca.Function]:
+        """The block functions of :attr:`blocks` (compiled without derivatives)."""
+        return [g for pair in self.blocks.values() for g in (pair.jac, pair.hess)]
+
+    def use(self, library) -> None:
+        """Replace :meth:`library_functions` (and the block functions) by their compiled
+        externals from ``library``."""
+        functions = library.functions()
+        for f in self.library_functions():
+            setattr(self, f.name(), functions[f.name()])
+        self.blocks = {name: BlockPair(pair.diff, functions[pair.jac.name()], functions[pair.hess.name()])
+                       for name, pair in self.blocks.items() if pair.jac.name() in functions}
+        self.library = library
+
+    def step(self, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Numeric state after one interval, shape (nx,)."""
+        L = self.layout
+        nv = L.nv
+        y = np.asarray(self.F_rb(x[: L.nq + nv], u[:nv] + u[nv:])).reshape(-1)
+        m = np.asarray(self.F_fatigue(x[L.m], u, p)).reshape(-1)
+        return np.concatenate([y, m])
+
+
+class ParameterLayout:
+    """Named blocks of the NLP's parameter vector, created through Opti in a recorded order."""
+
+    def __init__(self, opti: ca.Opti) -> None:
+        self._opti = opti
+        self._blocks: dict[str, tuple[slice, tuple[int, int]]] = {}
+        self._size = 0
+
+    def add(self, name: str, rows: int, cols: int = 1) -> ca.MX:
+        sym = self._opti.parameter(rows, cols)
+        self._blocks[name] = (slice(self._size, self._size + rows * cols), (rows, cols))
+        self._size += rows * cols
+        return sym
+
+    @property
+    def size(self) -> int:
+        return self._size
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self._blocks)
+
+    def vector(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The parameter vector from a value per block (column-major, as CasADi stores it)."""
+        if self._size != self._opti.p.numel():
+            raise RuntimeError("the Opti problem has parameters that are not in the parameter layout")
+        out = np.zeros(self._size)
+        for name, (sl, shape) in self._blocks.items():
+            if name not in values:
+                raise ParameterError(f"no value for NLP parameter block {name!r}")
+            a = np.asarray(values[name], dtype=float)
+            if a.size != sl.stop - sl.start:
+                raise ParameterError(f"NLP parameter block {name!r} has {a.size} values; expected shape {shape}")
+            out[sl] = a.reshape(shape).reshape(-1, order="F")
+        return out
+
+
+@dataclass
+class OcpSolution:
+    """A solved (or failed) OCP on its node grid.
+
+    Attributes:
+        t: node times (s), shape (N+1,).
+        x: states, shape (N+1, nx); u: controls, shape (N, nu).
+        layout: the state layout; actuator_names: names of the halves.
+        status, success, iterations, wall_time_s: from IPOPT (a failure keeps the last iterate).
+        nlp: the raw NLP result (flat vectors and multipliers, for warm starts).
+        cycle_costs: weighted cost terms per cycle, shape (n_cycles, n_terms), columns ``cost_terms``.
+        objective: the objective value.
+        cost_terms: names of the columns of ``cycle_costs``.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    layout: StateLayout
+    actuator_names: tuple[str, ...]
+    status: str
+    success: bool
+    iterations: int
+    wall_time_s: float
+    nlp: NlpResult
+    cycle_costs: np.ndarray
+    objective: float
+    cost_terms: tuple[str, ...] = ()
+
+    @property
+    def kind(self) -> str:
+        """How the solve ended (:func:`fatigue_pin.ocp.solver.failure_kind`): ``converged``,
+        ``infeasible``, ``infeasible-growing``, ``not-converged`` or ``numerical``."""
+        return self.nlp.kind
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.x[:, self.layout.q]
+
+    @property
+    def qdot(self) -> np.ndarray:
+        return self.x[:, self.layout.v]
+
+    def fatigue(self, state: str) -> np.ndarray:
+        """Fatigue state ``state`` of every half, shape (N+1, n_halves) (NaN where a half's model
+        has no such state)."""
+        return self.layout.fatigue_columns(self.x, state)
+
+    @property
+    def tau_plus(self) -> np.ndarray:
+        return self.u[:, : self.layout.nv]
+
+    @property
+    def tau_minus(self) -> np.ndarray:
+        return self.u[:, self.layout.nv :]
+
+
+#: initial-guess strategies of :meth:`Ocp.initial_guess`
+GUESSES = ("rest", "physical", "ik")
+
+
+class Ocp:
+    """The multiple-shooting NLP of a problem over ``n_cycles`` cycles, ready to solve.
+
+    Build once (symbolic functions, NLP, IPOPT instance, compiled code), then :meth:`solve` any
+    number of times with other initial states, end boxes, weights, fatigue parameters or guesses.
+
+    Args:
+        problem: the problem.
+        n_cycles: cycles in the horizon (fixes the structure).
+        transcription: discretisation settings.
+        solver: IPOPT settings.
+        end_tolerance: if set, q and qdot at the last node are bounded to a reference state
+            +- end_tolerance * (their bound range): the cyclic end condition of a window.
+        guess: the default initial guess, ``rest``, ``physical`` or ``ik``.
+        functions: interval functions to reuse (built from ``problem`` and ``transcription`` if
+            None); pass the ones of another Ocp of the same problem to skip rebuilding them.
+        progress: where a compile reports itself (a Reporter or a line callback; default quiet).
+    """
+
+    def __init__(
+        self,
+        problem: Problem,
+        n_cycles: int,
+        transcription: Transcription | None = None,
+        solver: SolverOptions | None = None,
+        end_tolerance: float | None = None,
+        guess: str = "rest",
+        functions: IntervalFunctions | None = None,
+        progress: Progress = None,
+    ) -> None:
+        t0 = time.perf_counter()
+        if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
+            raise ParameterError(f"n_cycles = {n_cycles!r}: expected an integer >= 1")
+        if end_tolerance is not None and not (0 <= end_tolerance < 1):
+            raise ParameterError(f"end_tolerance = {end_tolerance!r}: expected a fraction in [0, 1) or None")
+        if guess not in GUESSES:
+            raise ParameterError(f"guess = {guess!r}: expected one of {list(GUESSES)}")
+        self.problem = problem
+        self.model, self.actuators, self.task = problem.model, problem.actuators, problem.task
+        self.n_cycles = int(n_cycles)
+        self.transcription = transcription or Transcription()
+        self.solver_options = solver or SolverOptions()
+        self.end_tolerance = end_tolerance
+        self.guess = guess
+        self.actuators.check_stabiliser(self.task.dt / self.transcription.substeps, self.transcription.integrator)
+        self.n_intervals = N = self.n_cycles * self.task.intervals_per_cycle
+        library_mode = self.solver_options.library_mode
+        self.functions = functions or IntervalFunctions(problem, self.transcription, fatigue_calls=library_mode)
+        self.layout = self.functions.layout
+        self.cost_terms = problem.cost_names
+        library_compile_s = 0.0
+        if library_mode and self.functions.library is None:
+            self._build_library(progress)
+            library_compile_s = self.functions.library.compile_time_s
+        opti = self._formulate()
+        if self._uses_blocks and self.functions.library is None and not self.functions.blocks:  # uncompiled
+            self.functions.build_blocks(self._differentiated_inputs(opti.x))
+        blocks = self._block_derivatives if self._uses_blocks else None
+        self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
+                             label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks,
+                             kept_rows=self.kept_rows)
+        #: compile time paid by this build (s): the library (once per model) or the whole NLP
+        self.compile_time_s = self.nlp.compile_time_s + library_compile_s
+        self.build_time_s = time.perf_counter() - t0
+        self.t = np.linspace(0.0, N * self.task.dt, N + 1)
+
+    @property
+    def map_mode(self) -> str:
+        """How the interval functions (and their derivative blocks) are mapped. In library mode
+        with ``parallel="auto"``: ``thread`` (on an idle 2-core machine 10-17 % less time per
+        iteration than ``serial`` from 4 to 32 cycles, sliding window 0.49 s against 0.60 s; on
+        cores shared with other solver processes ``serial`` was 15-30 % faster, so set
+        ``Transcription(parallel="serial")`` there; docs/ocp.md)."""
+        if self.transcription.parallel == "auto" and self.solver_options.library_mode:
+            # CasADi's virtual machine evaluates the maps of the compiled externals
+            return "thread"
+        return self.transcription.map_mode(self.solver_options.compile)
+
+    @property
+    def _map_args(self) -> tuple:
+        """Arguments of ``Function.map`` after the count: :attr:`map_mode`, and the thread count
+        with ``thread``."""
+        mode = self.map_mode
+        return (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+
+    @property
+    def mapped_calls(self) -> tuple[MappedCall, ...]:
+        """The interval functions as mapped in the NLP (:class:`fatigue_pin.ocp.blocks.MappedCall`)."""
+        return tuple(self._mapped)
+
+    @property
+    def library(self):
+        """The per-model compiled library of the interval functions (library mode), or None."""
+        return self.functions.library
+
+    def _build_library(self, progress: Progress) -> None:
+        """Compile (or find in the cache) the interval functions and the derivatives of them that
+        this NLP evaluates, and use them. The derivative set is probed on a one-cycle NLP built
+        with the original functions (it depends on the problem's structure, not on the horizon)."""
+        import re
+
+        from fatigue_pin.ocp.compiled import FunctionLibrary, requested_derivatives
+
+        saved = self.n_intervals
+        self.n_intervals = self.task.intervals_per_cycle
+        try:
+            probe = self._formulate()
+            x, p, f, g = probe.x, probe.p, probe.f, probe.g
+            gi, *_ = simple_bounds(x, p, g, probe.lbg, probe.ubg, self.kept_rows)
+            nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
+            opts: dict = {"print_time": False}
+            if self._uses_blocks:
+                self.functions.build_blocks(self._differentiated_inputs(x))
+                opts.update(self._block_derivatives(nlp) or {})
+                if not opts.keys() & {"jac_g", "hess_lag"}:
+                    self.functions.blocks = {}  # not usable for this problem: CasADi's own derivatives
+            solver = ca.nlpsol("probe", "ipopt", nlp, opts)
+        finally:
+            self.n_intervals = saved
+        functions = self.functions.library_functions()
+        # with the blocks, only the gradients (adj1_) are evaluated of the interval functions
+        derivatives = requested_derivatives(solver, [fn.name() for fn in functions])
+        name = re.sub(r"[^A-Za-z0-9_]", "_", f"{self.model.name}_intervals")
+        library = FunctionLibrary.build(functions, name, self.solver_options.build_options(), derivatives=derivatives,
+                                        progress=progress, description=f"the {self.model.name} interval functions",
+                                        plain=self.functions.block_functions())
+        self.functions.use(library)
+
+    def _block_derivatives(self, nlp: Mapping[str, ca.MX]) -> dict[str, ca.Function] | None:
+        """nlpsol's ``jac_g`` and ``hess_lag`` from the interval functions' derivative blocks
+        (:func:`fatigue_pin.ocp.blocks.nlp_derivatives`), or None without usable blocks."""
+        if not self.functions.blocks:
+            return None
+        return nlp_derivatives(nlp, self._mapped, self.functions.blocks, self._map_args)
+
+    def _formulate(self) -> ca.Opti:
+        """The NLP as a ``casadi.Opti`` problem; sets ``X, U, T``, the parameters and the
+        cost-term function."""
+        fn, layout, N = self.functions, self.layout, self.n_intervals
+        nx, nu = layout.nx, layout.nu
+        opti = ca.Opti()
+        self.opti = opti
+        self.x_scale, self.u_scale, self.t_scale = self._variable_scales()
+        Xs = opti.variable(nx, N + 1)
+        Us = opti.variable(nu, N)
+        X = ca.diag(ca.DM(self.x_scale)) @ Xs
+        U = ca.diag(ca.DM(self.u_scale)) @ Us
+        if self.transcription.torque_variable:
+            # joint torque tau_plus + tau_minus as its own variable: the rigid-body dynamics then
+            # depend on nv torques instead of 2 nv halves, which halves the exact Hessian's cost
+            Ts = opti.variable(layout.nv, N)
+            T = ca.diag(ca.DM(self.t_scale)) @ Ts
+        else:
+            T = U[: layout.nv, :] + U[layout.nv :, :]
+        self.X, self.U, self.T = X, U, T
+        params = ParameterLayout(opti)
+        P_fatigue = params.add("fatigue", self.actuators.n_params)
+        P_weights = params.add("weights", len(self.cost_terms))
+        X_lb, X_ub = params.add("X_lb", nx, N + 1), params.add("X_ub", nx, N + 1)
+        U_lb, U_ub = params.add("U_lb", nu, N), params.add("U_ub", nu, N)
+        self.params = params
+
+        ny, nv = layout.nq + layout.nv, layout.nv
+        par = self._map_args
+        #: the mapped interval functions (for the derivative blocks, :mod:`fatigue_pin.ocp.blocks`)
+        self._mapped: list[MappedCall] = []
+
+        def mapped(f: ca.Function, n: int, *args: ca.MX, how: tuple = par) -> ca.MX:
+            out = f.map(n, *how)(*args)
+            self._mapped.append(MappedCall(f, tuple(args), out, n))
+            return out
+
+        if self.transcription.torque_variable:
+            opti.subject_to(T == U[:nv, :] + U[nv:, :])
+        opti.subject_to(X[:ny, 1:] == mapped(fn.F_rb, N, X[:ny, :N], T))
+        opti.subject_to(X[ny:, 1:] == mapped(fn.F_fatigue, N, X[ny:, :N], U, P_fatigue))
+        coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
+        opti.subject_to(opti.bounded(0, coupling, 1))
+        opti.subject_to(opti.bounded(X_lb, X, X_ub))
+        opti.subject_to(opti.bounded(U_lb, U, U_ub))
+        #: rows of g that stay constraints although they bound one variable (``target_rows``)
+        self.kept_rows: tuple[int, ...] = ()
+        if self.transcription.target_rows:
+            first = opti.g.numel()
+            for node, j, a, b in joint_target_pairs(self.task, self.model, N):
+                opti.subject_to(opti.bounded(a, X[j, node], b))
+            self.kept_rows = tuple(range(first, opti.g.numel()))
+        # state constraints of the task: expression rows with parametric bounds
+        self._state_constraints = []
+        for sc in self.task.expression_constraints(self.model, layout):  # StateConstraints, frame targets, planes
+            if sc.expression.size1_in(0) != nx:
+                raise ParameterError(f"task state constraint {sc.name!r} takes {sc.expression.size1_in(0)} inputs; expected nx = {nx}")
+            nodes = self.task.nodes(sc.at, N)
+            m = sc.expression.size1_out(0)
+            lb = params.add(f"{sc.name}_lb", m, len(nodes))
+            ub = params.add(f"{sc.name}_ub", m, len(nodes))
+            values = sc.expression.map(len(nodes))(X[:, nodes])
+            opti.subject_to(opti.bounded(lb, values, ub))
+            self._state_constraints.append((sc, nodes))
+        # objective: weighted named terms summed over intervals; the same function of (X, U)
+        # gives the per-cycle costs
+        n_terms = len(self.cost_terms)
+        Xn, Un = ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", nu, N)
+        terms = fn.terms.map(N)(Xn[:, :N], Un, ca.horzcat(Un[:, 0], Un[:, : N - 1])) if n_terms else ca.MX(0, N)
+        self._terms_fn = ca.Function("interval_terms", [Xn, Un], [terms])
+        if n_terms and self._uses_blocks:  # the map itself in the graph, where the blocks find it
+            opti.minimize(ca.dot(P_weights, ca.sum2(mapped(fn.terms, N, X[:, :N], U, ca.horzcat(U[:, 0], U[:, : N - 1]), how=()))))
+        else:  # as before the blocks (the same generated code, so `nlp` mode keeps its cache entries)
+            opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_fn(X, U))) if n_terms else ca.MX(0))
+        return opti
+
+    @property
+    def _uses_blocks(self) -> bool:
+        """Whether IPOPT gets the derivative-block Jacobian and Hessian
+        (:attr:`SolverOptions.derivative_blocks`: by default in library mode)."""
+        options = self.solver_options
+        if options.derivative_blocks is None:
+            return options.library_mode
+        return bool(options.derivative_blocks) and (options.library_mode or not options.compile)
+
+    def _differentiated_inputs(self, x: ca.MX) -> dict[str, tuple[int, ...]]:
+        """Per mapped interval function, the inputs that depend on the decision variables ``x``."""
+        return {c.function.name(): differentiated_inputs(c, x) for c in self._mapped}
+
+    # -- parameters and bounds -------------------------------------------------------------------
+
+    def _variable_scales(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Scales of the decision variables (state, control, joint torque): IPOPT solves for
+        value / scale. Velocities are scaled by their bound, torques by their limit."""
+        L = self.layout
+        x, u, t = np.ones(L.nx), np.ones(L.nu), np.ones(L.nv)
+        if self.transcription.scaling:
+
+            def magnitude(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+                """Largest |bound| per joint; 1 where it is infinite or zero."""
+                m = np.maximum(np.abs(lower), np.abs(upper))
+                return np.where(np.isfinite(m) & (m > 0), m, 1.0)
+
+            x[L.v] = magnitude(self.model.v_lower, self.model.v_upper)
+            tmax = magnitude(self.model.tau_lower, self.model.tau_upper)
+            u = np.concatenate([tmax, tmax])
+            t = tmax
+        return x, u, t
+
+    def initial_state(self) -> np.ndarray:
+        """The problem's initial state (nx,)."""
+        return self.problem.initial_state()
+
+    def _x_init(self, x_init: np.ndarray | None) -> np.ndarray:
+        if x_init is None:
+            return self.initial_state()
+        x_init = np.asarray(x_init, dtype=float).reshape(-1)
+        if x_init.size != self.layout.nx:
+            raise ParameterError(f"x_init has {x_init.size} entries; expected nx = {self.layout.nx}")
+        return x_init
+
+    def state_bounds(self, x_init: np.ndarray, x_end: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Node-wise state bounds, each of shape (nx, N+1).
+
+        Model bounds on q and qdot, [0, 1] on fatigue states, joint ranges, ``x_init`` at node 0,
+        the joint targets at their nodes and, with ``end_tolerance`` set and ``x_end`` given, q
+        and qdot at the last node within ``x_end +- end_tolerance * range``.
+        """
+        L, N, model = self.layout, self.n_intervals, self.model
+        nf = L.n_fatigue
+        lo = np.concatenate([model.q_lower, model.v_lower, np.zeros(nf)])
+        hi = np.concatenate([model.q_upper, model.v_upper, np.ones(nf)])
+        X_lb = np.tile(lo[:, None], (1, N + 1))
+        X_ub = np.tile(hi[:, None], (1, N + 1))
+        for rng in self.task.joint_ranges:
+            j = model.joint_names.index(rng.joint)
+            X_lb[j, :] = np.maximum(X_lb[j, :], rng.lower)
+            X_ub[j, :] = np.minimum(X_ub[j, :], rng.upper)
+        X_lb[:, 0] = X_ub[:, 0] = x_init
+        # with target_rows the targets are rows of g (:meth:`_formulate`), not bounds
+        targets = [] if self.transcription.target_rows else joint_target_pairs(self.task, self.model, N)
+        for node, j, a, b in targets:
+            X_lb[j, node], X_ub[j, node] = a, b
+        tol = self.end_tolerance
+        if tol is not None and x_end is not None:
+            rows = np.r_[np.arange(L.nq), L.nq + np.arange(L.nv)]
+            span = (hi - lo)[rows]
+            X_lb[rows, N] = np.maximum(X_lb[rows, N], x_end[rows] - tol * span)
+            X_ub[rows, N] = np.minimum(X_ub[rows, N], x_end[rows] + tol * span)
+            for node, j, a, b in targets:  # task targets win over the end box
+                X_lb[j, node], X_ub[j, node] = a, b
+        return X_lb, X_ub
+
+    def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the actuator halves, each of shape (nu, N)."""
+        N = self.n_intervals
+        lo = np.concatenate([np.zeros(self.layout.nv), self.actuators.tau_minus_limits])
+        hi = np.concatenate([self.actuators.tau_plus_limits, np.zeros(self.layout.nv)])
+        return np.tile(lo[:, None], (1, N)), np.tile(hi[:, None], (1, N))
+
+    def parameter_vector(
+        self,
+        x_init: np.ndarray | None = None,
+        x_end: np.ndarray | None = None,
+        weights: Mapping[str, float] | np.ndarray | None = None,
+        fatigue: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """The NLP parameter vector of one solve.
+
+        Args:
+            x_init: initial state (nx,); default the problem's.
+            x_end: reference of the end box (nx,), used when ``end_tolerance`` is set; default
+                ``x_init`` (the box around the horizon's initial state).
+            weights: cost weights, by name (others keep the problem's) or as a full vector.
+            fatigue: stacked fatigue parameters (n_params,); default the actuators'.
+        """
+        x_init = self._x_init(x_init)
+        X_lb, X_ub = self.state_bounds(x_init, x_init if x_end is None else x_end)
+        U_lb, U_ub = self.control_bounds()
+        values: dict[str, np.ndarray] = {
+            "fatigue": self.actuators.param_vector() if fatigue is None else np.asarray(fatigue, dtype=float).reshape(-1),
+            "weights": self.weight_vector(weights),
+            "X_lb": X_lb, "X_ub": X_ub, "U_lb": U_lb, "U_ub": U_ub,
+        }
+        for sc, nodes in self._state_constraints:
+            values[f"{sc.name}_lb"] = np.tile(np.asarray(sc.lower)[:, None], (1, len(nodes)))
+            values[f"{sc.name}_ub"] = np.tile(np.asarray(sc.upper)[:, None], (1, len(nodes)))
+        return self.params.vector(values)
+
+    def weight_vector(self, weights: Mapping[str, float] | np.ndarray | None = None) -> np.ndarray:
+        """Cost weights in :attr:`cost_terms` order from a mapping by name (or a full vector)."""
+        if weights is None or isinstance(weights, Mapping):
+            return self.problem.weight_vector(weights)
+        w = np.asarray(weights, dtype=float).reshape(-1)
+        if w.size != len(self.cost_terms):
+            raise ParameterError(f"weights have {w.size} entries; expected one per cost term {list(self.cost_terms)}")
+        return w
+
+    # -- initial guess ------------------------------------------------------------------------------
+
+    def rollout_fatigue(self, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """States (N+1, nx) from given q, qdot and controls, with the fatigue states integrated
+        forward from ``x_init``'s through the interval function, so that they are continuous."""
+        N, L = self.n_intervals, self.layout
+        x = np.zeros((N + 1, L.nx))
+        x[:, L.q], x[:, L.v] = q, qdot
+        x[0, L.m] = x_init[L.m]
+        p = self.actuators.param_vector()
+        for k in range(N):
+            m = np.asarray(self.functions.F_fatigue(x[k, L.m], u[k], p)).reshape(-1)
+            x[k + 1, L.m] = np.clip(m, 0.0, 1.0)
+        return x
+
+    def rest_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Every node at the initial state, zero torque. Shapes (N+1, nx), (N, nu)."""
+        x_init = self._x_init(x_init)
+        return np.tile(x_init, (self.n_intervals + 1, 1)), np.zeros((self.n_intervals, self.layout.nu))
+
+    def initial_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The initial guess named by ``guess`` (``rest``, ``physical`` or ``ik``)."""
+        if self.guess == "physical":
+            return self.physical_guess(x_init)
+        if self.guess == "ik":  # inverse kinematics of the frame targets (fatigue_pin.ocp.guesses)
+            from fatigue_pin.ocp.guesses import ik_guess
+
+            return ik_guess(self, x_init)
+        return self.rest_guess(x_init)
+
+    def physical_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The joints on a smooth motion through their targets (:meth:`Task.reference_trajectory`),
+        the inverse-dynamics torques split into the halves, and the fatigue states integrated
+        from those torques. Shapes (N+1, nx), (N, nu)."""
+        x_init = self._x_init(x_init)
+        N = self.n_intervals
+        q, qdot, qddot = self.task.reference_trajectory(self.model, self.t, x_init[self.layout.q])
+        tau = np.array([np.asarray(self.model.rnea(q[k], qdot[k], qddot[k])).reshape(-1) for k in range(N)])
+        tau = np.clip(tau, self.actuators.tau_minus_limits, self.actuators.tau_plus_limits)
+        u = np.hstack([np.maximum(tau, 0.0), np.minimum(tau, 0.0)])
+        return self.rollout_fatigue(x_init, q, qdot, u), u
+
+    def flatten(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Decision vector in the NLP's order (X, U[, T]) from states (N+1, nx) and controls (N, nu)."""
+        x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float)
+        nv = self.layout.nv
+        xs, us = x / self.x_scale, u / self.u_scale
+        parts = [xs.T.reshape(-1, order="F"), us.T.reshape(-1, order="F")]
+        if self.transcription.torque_variable:
+            parts.append(((u[:, :nv] + u[:, nv:]) / self.t_scale).T.reshape(-1, order="F"))
+        return np.concatenate(parts)
+
+    def unflatten(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (N+1, nx) and controls (N, nu) from a decision vector."""
+        N, L = self.n_intervals, self.layout
+        nX, nU = L.nx * (N + 1), L.nu * N
+        x = z[:nX].reshape((L.nx, N + 1), order="F").T * self.x_scale
+        u = z[nX : nX + nU].reshape((L.nu, N), order="F").T * self.u_scale
+        return x, u
+
+    def cycle_costs(self, x: np.ndarray, u: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Weighted cost terms per cycle, shape (n_cycles, n_terms)."""
+        n_terms = len(self.cost_terms)
+        if n_terms == 0:
+            return np.zeros((self.n_cycles, 0))
+        terms = np.asarray(self._terms_fn(x.T, u.T))  # (n_terms, N)
+        return terms.reshape(n_terms, self.n_cycles, self.task.intervals_per_cycle).sum(axis=2).T * weights
+
+    # -- solving ----------------------------------------------------------------------------------
+
+    def solve(
+        self,
+        x_init: np.ndarray | None = None,
+        guess: tuple[np.ndarray, np.ndarray] | None = None,
+        x_end: np.ndarray | None = None,
+        warm: NlpResult | None = None,
+        weights: Mapping[str, float] | np.ndarray | None = None,
+        max_iter: int | None = None,
+        fatigue: np.ndarray | None = None,
+    ) -> OcpSolution:
+        """Solve the OCP.
+
+        Args:
+            x_init: fixed initial state (nx,); default the problem's.
+            guess: initial guess (states (N+1, nx), controls (N, nu)); default :meth:`initial_guess`.
+            x_end: reference state of the end box (with ``end_tolerance`` set); default ``x_init``.
+            warm: a previous result of the same NLP whose multipliers start this solve.
+            weights: cost weights of this solve, by name or as a vector (default: the problem's).
+            max_iter: IPOPT iteration limit of this solve (default: the solver options').
+            fatigue: fatigue parameters of this solve (n_params,) (default: the actuators').
+
+        Returns:
+            An :class:`OcpSolution`; check ``success`` before using it as optimal.
+        """
+        x_init = self._x_init(x_init)
+        if guess is None:
+            guess = self.initial_guess(x_init)
+        w = self.weight_vector(weights)
+        p = self.parameter_vector(x_init, x_end, w, fatigue)
+        z0 = self.flatten(*guess)
+        res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None, max_iter=max_iter)
+        x, u = self.unflatten(res.x)
+        return OcpSolution(
+            t=self.t.copy(), x=x, u=u, layout=self.layout, actuator_names=self.actuators.half_names,
+            status=res.status, success=res.success, iterations=res.iterations, wall_time_s=res.wall_time_s,
+            nlp=res, cycle_costs=self.cycle_costs(x, u, w), objective=res.f, cost_terms=self.cost_terms,
+        )
+

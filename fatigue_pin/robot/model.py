@@ -1,0 +1,386 @@
+"""Rigid-body models: load a fixed-base URDF with Pinocchio and expose its CasADi dynamics.
+
+``load_model()`` returns the bundled arm26 (two revolute joints, 3.6 kg dumbbell in the hand);
+``load_model(path)`` loads any fixed-base robot whose joints are all revolute or prismatic
+(one position and one velocity per joint).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from fatigue_pin.robot.dynamics import casadi_dynamics
+from fatigue_pin.core.errors import DimensionError, ModelError
+
+#: Joint model short names Pinocchio uses for one-DoF revolute and prismatic joints.
+_SUPPORTED_JOINTS = (
+    "JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+    "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned",
+)
+
+
+def bundled_urdf(name: str = "arm26") -> Path:
+    """Path of a URDF shipped with fatigue_pin (``arm26``)."""
+    here = Path(__file__).resolve().parents[1]  # the package folder
+    for folder in (here / "urdf", here.parent / "urdf"):  # installed wheel, then source tree
+        path = folder / f"{name}.urdf"
+        if path.is_file():
+            return path
+    raise ModelError(f"bundled URDF {name!r} not found next to the package ({here}); reinstall fatigue_pin")
+
+
+#: URDFs of example-robot-data known by short name (paths below its ``robots`` folder).
+EXAMPLE_ROBOTS = {
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "panda": "panda_description/urdf/panda.urdf",
+}
+
+
+def example_robot_urdf(name: str) -> Path:
+    """Path of a URDF shipped by the ``example-robot-data`` wheel.
+
+    Args:
+        name: a short name of :data:`EXAMPLE_ROBOTS` (``ur5``, ``panda``) or a path below the
+            package's ``robots`` folder (e.g. ``"ur_description/urdf/ur5_robot.urdf"``).
+    """
+    from importlib import metadata
+
+    relative = EXAMPLE_ROBOTS.get(name, name)
+    try:
+        files = metadata.files("example-robot-data") or []
+    except metadata.PackageNotFoundError as exc:
+        raise ModelError("example-robot-data is not installed (pip install example-robot-data)") from exc
+    for f in files:
+        if str(f).endswith("example-robot-data/robots/" + relative):
+            return Path(f.locate()).resolve()
+    raise ModelError(f"example-robot-data has no URDF {name!r}; known names: {sorted(EXAMPLE_ROBOTS)}")
+
+
+def package_dirs() -> list[str]:
+    """Folders in which ``package://`` mesh paths of URDFs are resolved: the one holding
+    example-robot-data's packages (``.../share``), when installed."""
+    try:
+        share = example_robot_urdf("ur5").parents[4]
+    except (ModelError, IndexError):
+        return []
+    return [str(share)]
+
+
+@dataclass(frozen=True)
+class Payload:
+    """A rigid load held at a frame of the model (a tool, a carried box).
+
+    Attributes:
+        frame: the frame it is fixed to (a link or tool frame of the URDF).
+        mass: kg, >= 0.
+        com: centre of mass in the frame's axes, from its origin (m), 3 numbers.
+        inertia: rotational inertia about the centre of mass, in the frame's axes (kg m^2), as
+            (ixx, ixy, ixz, iyy, iyz, izz); None: a point mass.
+    """
+
+    frame: str
+    mass: float
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        m = self.mass
+        if isinstance(m, bool) or not isinstance(m, (int, float, np.floating, np.integer)) or not math.isfinite(m) or m < 0:
+            raise ModelError(f"payload mass = {m!r}: expected a finite mass >= 0 (kg)")
+        object.__setattr__(self, "mass", float(m))
+        c = np.asarray(self.com, dtype=float).reshape(-1)
+        if c.size != 3 or not np.all(np.isfinite(c)):
+            raise ModelError(f"payload com = {list(np.ravel(self.com))!r}: expected 3 finite numbers (m, in the frame's axes)")
+        object.__setattr__(self, "com", tuple(float(x) for x in c))
+        if self.inertia is not None:
+            i = np.asarray(self.inertia, dtype=float).reshape(-1)
+            if i.size != 6 or not np.all(np.isfinite(i)) or np.linalg.eigvalsh(self.inertia_matrix(i)).min() < -1e-12:
+                raise ModelError(f"payload inertia = {list(np.ravel(self.inertia))!r}: expected (ixx, ixy, ixz, iyy, iyz, izz), "
+                                 "kg m^2, a positive semi-definite matrix")
+            object.__setattr__(self, "inertia", tuple(float(x) for x in i))
+
+    @staticmethod
+    def inertia_matrix(i: np.ndarray | tuple | None) -> np.ndarray:
+        if i is None:
+            return np.zeros((3, 3))
+        ixx, ixy, ixz, iyy, iyz, izz = i
+        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+    def apply(self, model: pin.Model, owner: str = "model") -> None:
+        """Add the load to the body of the frame's parent joint of ``model`` (in place)."""
+        if not model.existFrame(self.frame):
+            names = [f.name for f in model.frames if f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME)]
+            raise ModelError(f"payload frame {self.frame!r} is not in {owner} {model.name!r}; its link and tool frames are {names}")
+        f = model.frames[model.getFrameId(self.frame)]
+        if f.parentJoint == 0:
+            raise ModelError(f"payload frame {self.frame!r} is fixed to the base of {owner} {model.name!r}; it would move no joint")
+        Y = pin.Inertia(self.mass, np.array(self.com), self.inertia_matrix(self.inertia))
+        model.appendBodyToJoint(f.parentJoint, Y, f.placement)
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A fixed-base rigid-body model with its bounds and CasADi dynamics.
+
+    Attributes:
+        name: model name from the URDF.
+        urdf_path: the URDF file the model was built from.
+        pin_model: the Pinocchio model (gravity (0, 0, -9.81) m/s^2 unless changed).
+        joint_names: names of the actuated joints, in Pinocchio order (length nv).
+        q_lower, q_upper: position bounds, shape (nq,), rad or m.
+        v_lower, v_upper: velocity bounds, shape (nv,), rad/s or m/s.
+        tau_lower, tau_upper: torque/force bounds, shape (nv,), N m or N (tau_lower < 0 < tau_upper).
+        aba: ``casadi.Function`` (q[nq], v[nv], tau[nv]) -> ddq[nv], Pinocchio's ABA on SX.
+        rnea: ``casadi.Function`` (q[nq], v[nv], a[nv]) -> tau[nv], Pinocchio's RNEA on SX.
+        payload: the :class:`Payload` added to ``pin_model`` (and so to ``aba``, ``rnea``), or None.
+    """
+
+    name: str
+    urdf_path: Path
+    pin_model: pin.Model = field(repr=False)
+    joint_names: tuple[str, ...]
+    q_lower: np.ndarray = field(repr=False)
+    q_upper: np.ndarray = field(repr=False)
+    v_lower: np.ndarray = field(repr=False)
+    v_upper: np.ndarray = field(repr=False)
+    tau_lower: np.ndarray = field(repr=False)
+    tau_upper: np.ndarray = field(repr=False)
+    aba: ca.Function = field(repr=False)
+    rnea: ca.Function = field(repr=False)
+    payload: Payload | None = None
+    _frames: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    # -- frame kinematics on CasADi symbols (fatigue_pin.robot.kinematics), cached per frame ----------
+
+    def frame(self, frame: str):
+        """:class:`~fatigue_pin.robot.kinematics.FrameFunctions` of ``frame`` (built once, then cached)."""
+        from fatigue_pin.robot.kinematics import frame_functions, frame_id
+
+        fid = frame_id(self.pin_model, frame)
+        if fid not in self._frames:
+            self._frames[fid] = frame_functions(self.pin_model, fid)
+        return self._frames[fid]
+
+    def frame_position(self, frame: str) -> ca.Function:
+        """``casadi.Function`` q (nq) -> p (3): world position of ``frame``'s origin (m)."""
+        return self.frame(frame).position
+
+    def frame_rotation(self, frame: str) -> ca.Function:
+        """``casadi.Function`` q (nq) -> R (3 x 3): world orientation of ``frame``."""
+        return self.frame(frame).rotation
+
+    def frame_velocity(self, frame: str) -> ca.Function:
+        """``casadi.Function`` (q (nq), v (nv)) -> pdot (3): linear velocity of ``frame``'s origin,
+        world axes (m/s)."""
+        return self.frame(frame).velocity
+
+    @property
+    def nq(self) -> int:
+        """Number of configuration variables."""
+        return self.pin_model.nq
+
+    @property
+    def nv(self) -> int:
+        """Number of velocity variables (= number of actuated joints)."""
+        return self.pin_model.nv
+
+    def joint_index(self, joint: str) -> int:
+        """Index of ``joint`` in q, v and tau. Raises ModelError naming the known joints."""
+        if joint not in self.joint_names:
+            raise ModelError(f"joint {joint!r} is not in model {self.name!r}; its joints are {list(self.joint_names)}")
+        return self.joint_names.index(joint)
+
+    def check_state(self, q: np.ndarray, v: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Return q, v as float arrays of shapes (nq,), (nv,); raise DimensionError otherwise."""
+        q = np.asarray(q, dtype=float).reshape(-1)
+        v = np.zeros(self.nv) if v is None else np.asarray(v, dtype=float).reshape(-1)
+        if q.size != self.nq:
+            raise DimensionError(f"q has {q.size} entries; model {self.name!r} expects nq = {self.nq}")
+        if v.size != self.nv:
+            raise DimensionError(f"v has {v.size} entries; model {self.name!r} expects nv = {self.nv}")
+        return q, v
+
+    def gravity_torque(self, q: np.ndarray) -> np.ndarray:
+        """Static holding torques g(q), shape (nv,), N m (torque that keeps the model still at q)."""
+        q, v = self.check_state(q)
+        return np.asarray(self.rnea(q, v, np.zeros(self.nv))).reshape(-1)
+
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Joint accelerations from the CasADi ABA, shape (nv,)."""
+        q, v = self.check_state(q, v)
+        tau = np.asarray(tau, dtype=float).reshape(-1)
+        if tau.size != self.nv:
+            raise DimensionError(f"tau has {tau.size} entries; model {self.name!r} expects nv = {self.nv}")
+        return np.asarray(self.aba(q, v, tau)).reshape(-1)
+
+    def body_masses(self) -> dict[str, float]:
+        """Mass carried by each joint's subtree body (kg), fixed bodies merged in, by joint name."""
+        return {self.pin_model.names[i]: float(self.pin_model.inertias[i].mass) for i in range(1, self.pin_model.njoints)}
+
+    def summary(self, q: np.ndarray | None = None) -> str:
+        """Human-readable summary: joints, masses, bounds and holding torques at ``q``.
+
+        The default ``q`` of arm26 is (0.07 rad, 15 deg), the initial posture of the curl task;
+        for other models it is the middle of the joint ranges.
+        """
+        if q is None:
+            q = np.array([0.07, math.radians(15.0)]) if self.name == "arm26" else 0.5 * (self.q_lower + self.q_upper)
+        q = self.check_state(q)[0]
+        g = self.gravity_torque(q)
+        masses = self.body_masses()
+        lines = [
+            f"model {self.name} ({self.urdf_path})",
+            f"  nq = {self.nq}, nv = {self.nv}, total mass {sum(masses.values()):.4f} kg, "
+            f"gravity {tuple(float(x) for x in self.pin_model.gravity.linear)} m/s^2",
+            f"  {'joint':<14}{'mass (kg)':>11}{'q range (rad)':>22}{'|v| max (rad/s)':>17}"
+            f"{'tau range (N m)':>19}{'g(q) (N m)':>13}",
+        ]
+        for i, name in enumerate(self.joint_names):
+            lines.append(
+                f"  {name:<14}{masses[name]:>11.4f}{f'[{self.q_lower[i]:.4f}, {self.q_upper[i]:.4f}]':>22}"
+                f"{self.v_upper[i]:>17.4f}{f'[{self.tau_lower[i]:.1f}, {self.tau_upper[i]:.1f}]':>19}{g[i]:>13.4f}"
+            )
+        lines.append(f"  holding torques at q = {np.array2string(q, precision=4)} rad: {np.array2string(g, precision=4)} N m")
+        return "\n".join(lines)
+
+
+def _validate_joints(model: pin.Model, path: Path) -> None:
+    """Reject floating bases and joints other than one-DoF revolute/prismatic, naming them."""
+    for i in range(1, model.njoints):
+        joint = model.joints[i]
+        short = joint.shortname()
+        if short == "JointModelFreeFlyer":
+            raise ModelError(f"{path}: joint {model.names[i]!r} is a floating base; only fixed-base models are supported")
+        if short not in _SUPPORTED_JOINTS:
+            raise ModelError(
+                f"{path}: joint {model.names[i]!r} is of unsupported type {short} (nq={joint.nq}, nv={joint.nv}); "
+                "expected revolute or prismatic joints with one position and one velocity"
+            )
+
+
+def resolve_model(name: str | Path | None = None, gravity: object = None, payload: Payload | None = None) -> RobotModel:
+    """Load a model by name or path: a bundled model (``arm26``), an example-robot-data name
+    (``ur5``, ``panda``), or the path of a URDF file; ``payload`` adds a load at a frame.
+
+    Raises:
+        ModelError: a name that is none of these, or a file that cannot be loaded.
+    """
+    g = None if gravity is None else np.asarray(gravity, dtype=float)
+    if name is None:
+        return load_model(None, g, payload)
+    text = str(name)
+    here = Path(__file__).resolve().parents[1]  # the package folder
+    if text.isidentifier() and any((folder / f"{text}.urdf").is_file() for folder in (here / "urdf", here.parent / "urdf")):
+        return load_model(bundled_urdf(text), g, payload)
+    if text in EXAMPLE_ROBOTS:
+        return load_model(example_robot_urdf(text), g, payload)
+    path = Path(text).expanduser()
+    if not path.suffix and not path.exists():
+        raise ModelError(
+            f"model {text!r} is not a bundled model (arm26), an example-robot-data name {sorted(EXAMPLE_ROBOTS)} or an existing URDF path"
+        )
+    return load_model(path, g, payload)
+
+
+def _check_urdf_text(path: Path) -> None:
+    """Refuse, with one line, URDF files that the URDF parser would reject: not XML, no
+    ``<robot>`` root, joints without name, type, parent or child, revolute or prismatic joints
+    whose ``<limit>`` lacks ``effort`` or ``velocity`` (urdfdom prints its own complaints on the
+    process's standard error; checking first keeps errors on one line without redirecting it)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {exc}") from None
+    if root.tag != "robot":
+        raise ModelError(f"URDF file {str(path)!r} does not parse: the root element is <{root.tag}>; expected <robot>")
+    links = {link.get("name") for link in root.iter("link")}
+    for joint in root.findall("joint"):  # not root.iter: <transmission> elements hold <joint name=...> too
+        name = joint.get("name")
+        if not name or not joint.get("type"):
+            raise ModelError(f"URDF file {str(path)!r} does not parse: a joint lacks its name or type attribute")
+        for end in ("parent", "child"):
+            tag = joint.find(end)
+            if tag is None or tag.get("link") not in links:
+                raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: no {end} link, or an unknown one")
+        limit = joint.find("limit")
+        if joint.get("type") in ("revolute", "prismatic"):
+            if limit is None:
+                raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: a {joint.get('type')} joint needs a <limit>")
+            for key in ("effort", "velocity"):
+                if limit.get(key) is None:
+                    raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: limit has no {key}")
+
+
+def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None) -> RobotModel:
+    """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
+
+    Args:
+        urdf: URDF file; default the bundled arm26 (``urdf/arm26.urdf``).
+        gravity: optional gravity vector (3,) in the world frame, m/s^2 (default (0, 0, -9.81)).
+        payload: an optional :class:`Payload` fixed to one of the model's frames; it is part of
+            ``pin_model`` and of the CasADi dynamics (the URDF file is left as it is).
+
+    Returns:
+        A :class:`RobotModel`. Bounds come from the URDF ``<limit>`` tags; a missing or infinite
+        velocity limit becomes +-10*pi rad/s, and a missing effort limit raises ModelError.
+
+    Raises:
+        ModelError: the file is missing or does not parse, the base floats, a joint is unsupported,
+            a joint has no effort limit, or a joint moves no mass (zero mass and inertia).
+    """
+    path = bundled_urdf("arm26") if urdf is None else Path(urdf).expanduser()
+    if not path.is_file():
+        raise ModelError(f"URDF file not found: {str(path)!r} (expected the path of an existing .urdf file)")
+    _check_urdf_text(path)
+    try:
+        model = pin.buildModelFromUrdf(str(path))
+    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {' '.join(str(exc).split())}") from exc
+    _validate_joints(model, path)
+    if model.nv == 0:
+        raise ModelError(f"{path}: the model has no movable joint")
+    if gravity is not None:
+        g = np.asarray(gravity, dtype=float).reshape(-1)
+        if g.size != 3:
+            raise DimensionError(f"gravity has {g.size} entries; expected 3 (m/s^2, world frame)")
+        model.gravity.linear = g
+    if payload is not None:
+        payload.apply(model, "model")
+
+    names = tuple(model.names[i] for i in range(1, model.njoints))
+    q_lower, q_upper = np.array(model.lowerPositionLimit, dtype=float), np.array(model.upperPositionLimit, dtype=float)
+    v_max = np.array(model.velocityLimit, dtype=float)
+    v_max = np.where(np.isfinite(v_max) & (v_max > 0), v_max, 10 * math.pi)
+    effort = np.array(model.effortLimit, dtype=float)
+    for name, e in zip(names, effort):
+        if not (np.isfinite(e) and e > 0):
+            raise ModelError(f"{path}: joint {name!r} has effort limit {e}; expected a finite effort > 0 in its <limit> tag")
+    inertia = np.diag(pin.crba(model, model.createData(), pin.neutral(model)))
+    for name, m in zip(names, inertia):
+        if not (np.isfinite(m) and m > 1e-12):
+            raise ModelError(f"{path}: joint {name!r} moves no mass (inertia {m:g} about its axis); "
+                             "expected the links it moves to have an <inertial> with mass > 0")
+    aba, rnea = casadi_dynamics(model)
+    return RobotModel(
+        name=model.name,
+        urdf_path=path.resolve(),
+        pin_model=model,
+        joint_names=names,
+        q_lower=q_lower,
+        q_upper=q_upper,
+        v_lower=-v_max,
+        v_upper=v_max,
+        tau_lower=-effort,
+        tau_upper=effort.copy(),
+        aba=aba,
+        rnea=rnea,
+        payload=payload,
+    )

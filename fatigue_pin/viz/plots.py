@@ -1,0 +1,434 @@
+"""Figures of result files (matplotlib, Agg canvas, no pyplot state): every figure is saved as PNG
+and PDF, every function returns the paths it wrote.
+
+Per OCP run (``<prefix>`` is the run name with '/' replaced by '_'):
+
+* ``<prefix>_joint_angles``: each joint's angle over the cycle, one line per cycle;
+* ``<prefix>_fatigue_states``: stacked ma, mr, mf and the target load TL of every actuator half;
+* ``<prefix>_torque_limits``: available torque (1 - mf) * tau_limit of every half at cycle ends;
+* ``<prefix>_capacity``: (:func:`plot_capacity`, not in :func:`plot_run`) each joint's flexion
+  and extension capacity at cycle ends against the peak torque the cycle used and, if given,
+  the torque that holds the posture;
+* ``<prefix>_cycle_costs``: the weighted cost terms of every cycle (log scale);
+* ``<prefix>_solve_time``: solve time per cycle (sliding horizon: per window).
+
+Per file: ``runs_comparison`` when it holds several runs, ``search_<name>`` for each max-cycles
+search table, and the forward-study figures for ``forward_studies.h5``.
+:func:`plot_file` picks what applies. The layouts are described in ``docs/results.md``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import h5py
+import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from fatigue_pin.io.results import ResultFileError, RunResult, list_runs, read_run, read_search
+
+if TYPE_CHECKING:
+    from fatigue_pin.paper.forward import ForwardStudiesResult
+
+#: Colours of the fatigue compartments (as in the forward-study figures).
+STATE_COLORS = {"ma": "#00cc96", "mr": "#ffa15a", "mf": "#ef553b"}
+DEFAULT_TAU_LIMIT = 50.0  # N m, used when a run has no ``tau_limits`` attribute
+DPI = 120
+
+
+def _figure(**kwargs: object) -> Figure:
+    fig = Figure(**kwargs)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / f"{stem}.png", out_dir / f"{stem}.pdf"]
+    fig.savefig(paths[0], dpi=DPI)
+    fig.savefig(paths[1])
+    return paths
+
+
+def run_prefix(run: RunResult | str) -> str:
+    """File-name prefix of a run: its name with '/' replaced by '_'."""
+    name = run if isinstance(run, str) else run.name
+    return name.strip("/").replace("/", "_")
+
+
+def _title(run: RunResult) -> str:
+    a = run.attrs
+    labels = [f"{k} {a[k]}" for k in ("cost", "S", "preset") if k in a]
+    bits = [run.name, f"{a.get('model', '?')}", f"{a.get('horizon', '?')} horizon", *labels, f"{run.n_cycles} cycles", "converged" if run.converged else f"NOT CONVERGED ({a.get('status', '?')})"]
+    return ", ".join(str(b) for b in bits)
+
+
+def _cycle_colors(n: int) -> np.ndarray:
+    from matplotlib import colormaps
+
+    return colormaps["viridis"](np.linspace(0.0, 0.9, max(n, 1)))
+
+
+def tau_limits(run: RunResult) -> np.ndarray:
+    """Signed torque limit of every half (N m), (halves,): attribute ``tau_limits``, else
+    +-50 N m (+ for ``*_plus``, - for ``*_minus`` halves)."""
+    lim = run.attrs.get("tau_limits")
+    if lim is not None and np.size(lim) == len(run.actuator_names):
+        return np.asarray(lim, dtype=float).reshape(-1)
+    return np.array([-DEFAULT_TAU_LIMIT if h.endswith("_minus") else DEFAULT_TAU_LIMIT for h in run.actuator_names])
+
+
+def target_loads(run: RunResult) -> np.ndarray:
+    """Target load TL = tau / tau_limit of every half on every interval (dimensionless), (intervals, halves)."""
+    lim = tau_limits(run)
+    tl = np.empty((run.tau_plus.shape[0], len(run.actuator_names)))
+    for h, name in enumerate(run.actuator_names):
+        joint, _, sign = name.rpartition("_")
+        j = run.joint_names.index(joint) if joint in run.joint_names else h // 2
+        tau = run.tau_minus[:, j] if sign == "minus" or (sign != "plus" and h % 2) else run.tau_plus[:, j]
+        tl[:, h] = tau / lim[h]
+    return tl
+
+
+# -- per-run figures -----------------------------------------------------------------------------
+
+
+def plot_joint_angles(run: RunResult, out_dir: Path) -> list[Path]:
+    """Joint angles (deg) against time within the cycle (s), one line per cycle, one panel per joint."""
+    n = run.n_cycles
+    colors = _cycle_colors(n)
+    fig = _figure(figsize=(6 * len(run.joint_names), 4.2))
+    axes = fig.subplots(1, len(run.joint_names), squeeze=False)[0]
+    for j, (ax, joint) in enumerate(zip(axes, run.joint_names)):
+        for c in range(n):
+            s = run.cycle_slice(c)
+            tc = run.t[s] - run.t[s.start]
+            edge = c in (0, n - 1)
+            ax.plot(tc, np.degrees(run.q[s, j]), color=colors[c], lw=2.2 if edge else 0.8, alpha=1.0 if edge else 0.6,
+                    zorder=3 if edge else 2, label=f"cycle {c + 1}" if edge else None)
+        ax.set_title(joint)
+        ax.set_xlabel("time in cycle (s)")
+        ax.set_ylabel("angle (deg)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    if n > 1:
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import ListedColormap, Normalize
+
+        sm = ScalarMappable(Normalize(1, n), ListedColormap(colors))
+        fig.colorbar(sm, ax=list(axes), label="cycle", fraction=0.04)
+    fig.suptitle(_title(run), fontsize=9)
+    return _save(fig, out_dir, f"{run_prefix(run)}_joint_angles")
+
+
+def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
+    """The fatigue states of every half stacked (bottom to top, in the order the models declare
+    them: ma, mr, mf for Xia's model), with its target load TL (black steps); TL must stay below
+    1 - mf, the lower edge of the mf band."""
+    halves = run.actuator_names
+    tl = target_loads(run)
+    ncols = 2
+    nrows = (len(halves) + 1) // ncols
+    fig = _figure(figsize=(12, 3.0 * nrows + 0.6))
+    axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False).reshape(-1)
+    for h, (ax, name) in enumerate(zip(axes, halves)):
+        states = [s for s in run.fatigue_states if np.all(np.isfinite(run.fatigue[s][:, h]))]
+        palette = matplotlib.colormaps["tab10"]
+        ax.stackplot(run.t, *[run.fatigue[s][:, h] for s in states], labels=states,
+                     colors=[STATE_COLORS.get(s, palette(i)) for i, s in enumerate(states)], alpha=0.85, lw=0)
+        ax.step(run.t[:-1], tl[:, h], where="post", color="k", lw=0.8, label="TL = tau / tau_limit")
+        for c in range(1, run.n_cycles):
+            ax.axvline(run.t[run.cycle_slice(c).start], color="w", lw=0.4, alpha=0.6)
+        ax.set_ylim(0.0, 1.05)
+        ax.set_xlim(run.t[0], run.t[-1])
+        ax.set_title(f"{name} (limit {tau_limits(run)[h]:+g} N m)", fontsize=10)
+        ax.set_ylabel("fraction (-)")
+    for ax in axes[len(halves):]:
+        ax.set_visible(False)
+    for ax in axes[-ncols:]:
+        ax.set_xlabel("time (s)")
+    axes[0].legend(fontsize=8, loc="upper left", ncol=4)
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_fatigue_states")
+
+
+def plot_torque_limits(run: RunResult, out_dir: Path) -> list[Path]:
+    """Available torque (1 - mf) * tau_limit (N m) of every half at the start and at the end of each cycle."""
+    lim = tau_limits(run)
+    cycles = np.arange(0, run.n_cycles + 1)
+    fig = _figure(figsize=(9, 5))
+    axes = fig.subplots(1, 2, sharex=True)
+    for h, name in enumerate(run.actuator_names):
+        values = np.concatenate([[lim[h] * (1.0 - run.fatigued[0, h])], run.torque_limits[:, h]])
+        ax = axes[1] if lim[h] < 0 else axes[0]
+        ratio = values[0] / values[-1] if values[-1] != 0 else np.inf
+        ax.plot(cycles, values, "o-", ms=3, label=f"{name}: {values[0]:.3g} -> {values[-1]:.3g} N m ({ratio:.3g}x lower)")
+    for ax, kind in zip(axes, ("flexion halves (tau_plus)", "extension halves (tau_minus)")):
+        ax.set_title(kind, fontsize=10)
+        ax.set_xlabel("end of cycle (0: start)")
+        ax.set_ylabel("torque limit (N m)")
+        ax.grid(alpha=0.3)
+        if ax.lines:
+            ax.legend(fontsize=7)
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_torque_limits")
+
+
+def plot_cycle_costs(run: RunResult, out_dir: Path) -> list[Path]:
+    """Each weighted cost term per cycle (log scale), and their sum."""
+    cycles = np.arange(1, run.n_cycles + 1)
+    fig = _figure(figsize=(8, 4.5))
+    ax = fig.subplots()
+    for k, term in enumerate(run.cost_terms):
+        v = run.cycle_costs[:, k]
+        if np.any(v > 0):
+            ax.semilogy(cycles, np.where(v > 0, v, np.nan), "o-", ms=3, label=term)
+    total = run.cycle_costs.sum(axis=1)
+    if np.any(total > 0):
+        ax.semilogy(cycles, np.where(total > 0, total, np.nan), "k--", lw=1, label="total")
+    ax.set_xlabel("cycle")
+    ax.set_ylabel("weighted cost (-)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_cycle_costs")
+
+
+def plot_solve_time(run: RunResult, out_dir: Path) -> list[Path]:
+    """Solve time (s). Sliding horizon: each window's wall time as a bar at the cycle it starts
+    (failed windows hatched), with the time attributed to each kept cycle. Full horizon: the total
+    wall time spread evenly over the cycles."""
+    fig = _figure(figsize=(8, 4.5))
+    ax = fig.subplots()
+    cycles = np.arange(1, run.n_cycles + 1)
+    if run.attrs.get("horizon") == "sliding" and run.windows is not None and len(run.windows):
+        from matplotlib import colormaps
+
+        w = run.windows
+        colors = colormaps["tab20"](np.arange(len(w)) % 20)
+        bottom: dict[int, float] = {}
+        for i, row in enumerate(w):
+            c = int(row["first_cycle"]) + 1
+            ax.bar(c, row["wall_time_s"], bottom=bottom.get(c, 0.0), color=colors[i], edgecolor="k", lw=0.4,
+                   hatch=None if row["converged"] else "//", width=0.8)
+            bottom[c] = bottom.get(c, 0.0) + float(row["wall_time_s"])
+        if run.cycle_wall_time_s.size == run.n_cycles:
+            ax.plot(cycles, run.cycle_wall_time_s, "k.-", lw=0.8, label="attributed to each kept cycle")
+            ax.legend(fontsize=8)
+        total = float(np.sum(w["wall_time_s"]))
+        ax.set_xlabel("first cycle of the window")
+        ax.set_ylabel("wall time per window (s)")
+        ax.set_title(f"{len(w)} windows ({int(np.sum(~w['converged']))} failed, hatched), total {total:.1f} s, "
+                     f"median {np.median(w['wall_time_s']):.2f} s per window", fontsize=9)
+    else:
+        per_cycle = run.cycle_wall_time_s
+        if per_cycle.size != run.n_cycles:
+            per_cycle = np.full(run.n_cycles, float(run.attrs.get("wall_time_s", np.nan)) / max(run.n_cycles, 1))
+        ax.bar(cycles, per_cycle, color="tab:blue", width=0.8)
+        ax.set_xlabel("cycle")
+        ax.set_ylabel("wall time per cycle (s)")
+        ax.set_title(f"one NLP over {run.n_cycles} cycles: {float(run.attrs.get('wall_time_s', np.nan)):.1f} s "
+                     f"= {np.mean(per_cycle):.2f} s per cycle", fontsize=9)
+    ax.grid(alpha=0.3, axis="y")
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_solve_time")
+
+
+def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
+    """Every per-run figure of ``run``."""
+    paths: list[Path] = []
+    for plot in (plot_joint_angles, plot_fatigue_states, plot_torque_limits, plot_cycle_costs, plot_solve_time):
+        paths += plot(run, out_dir)
+    return paths
+
+
+def peak_torques(run: RunResult) -> np.ndarray:
+    """Largest |tau| of every half within each cycle (N m, >= 0), (cycles, halves)."""
+    tau = np.abs(target_loads(run) * tau_limits(run))
+    n = run.n_cycles
+    per = tau.shape[0] // max(n, 1)
+    return np.array([tau[c * per:(c + 1) * per].max(axis=0) for c in range(n)]).reshape(n, -1)
+
+
+def plot_capacity(run: RunResult, out_dir: Path, holding: dict[str, float] | None = None,
+                  stem: str = "capacity") -> list[Path]:
+    """Why a run cannot do one more cycle: for every half, its capacity |(1 - mf) tau_limit| at
+    the end of each cycle (N m) against the largest |torque| the cycle used, and a horizontal line
+    at ``holding[joint]`` (N m, e.g. the gravity torque at the cycle's start posture), if given.
+    One panel per half that does any work."""
+    lim = tau_limits(run)
+    peak = peak_torques(run)
+    used = [h for h in range(len(run.actuator_names)) if peak[:, h].max() > 1e-3 * abs(lim[h])]
+    fig = _figure(figsize=(4.2 * max(len(used), 1), 4))
+    axes = np.atleast_1d(fig.subplots(1, max(len(used), 1)))
+    cycles = np.arange(1, run.n_cycles + 1)
+    for ax, h in zip(axes, used):
+        name = run.actuator_names[h]
+        cap = np.abs(run.torque_limits[:, h])
+        ax.plot(cycles, cap, "o-", ms=3, color="tab:blue", label="capacity at cycle end")
+        ax.plot(cycles, peak[:, h], "s-", ms=3, color="tab:red", label="peak |torque| in the cycle")
+        joint = name.rpartition("_")[0]
+        if holding and joint in holding:
+            ax.axhline(abs(holding[joint]), color="k", ls="--", lw=1, label=f"holding torque {abs(holding[joint]):.2f} N m")
+        ax.set_title(f"{name}: {cap[-1]:.3g} N m left, peak {peak[-1, h]:.3g}", fontsize=9)
+        ax.set_xlabel("cycle")
+        ax.set_ylabel("torque (N m)")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_{stem}")
+
+
+# -- per-file figures ----------------------------------------------------------------------------
+
+
+def plot_comparison(runs: Sequence[RunResult], out_dir: Path) -> list[Path]:
+    """Several runs side by side: cycles reached, and the joint angles of each run's last cycle."""
+    fig = _figure(figsize=(12, 4.5))
+    ax_n, *ax_q = fig.subplots(1, 1 + len(runs[0].joint_names))
+    names = [r.name for r in runs]
+    ax_n.barh(names, [r.n_cycles for r in runs], color=["tab:blue" if r.converged else "tab:red" for r in runs])
+    ax_n.set_xlabel("cycles (red: not converged)")
+    ax_n.invert_yaxis()
+    ax_n.tick_params(axis="y", labelsize=7)
+    for r in runs:
+        s = r.cycle_slice(r.n_cycles - 1)
+        for j, ax in enumerate(ax_q):
+            if j < r.q.shape[1]:
+                ax.plot(r.t[s] - r.t[s.start], np.degrees(r.q[s, j]), label=r.name)
+    for ax, joint in zip(ax_q, runs[0].joint_names):
+        ax.set_title(f"{joint}, last cycle", fontsize=10)
+        ax.set_xlabel("time in cycle (s)")
+        ax.set_ylabel("angle (deg)")
+        ax.grid(alpha=0.3)
+    ax_q[-1].legend(fontsize=6)
+    fig.tight_layout()
+    return _save(fig, out_dir, "runs_comparison")
+
+
+def plot_search(name: str, table: np.ndarray, out_dir: Path) -> list[Path]:
+    """A max-cycles search: wall time (s) of each attempted number of cycles, converged or not."""
+    fig = _figure(figsize=(7, 4))
+    ax = fig.subplots()
+    ok = table["converged"].astype(bool)
+    ax.plot(table["n_cycles"][ok], table["wall_time_s"][ok], "o", color="tab:blue", label="converged")
+    ax.plot(table["n_cycles"][~ok], table["wall_time_s"][~ok], "x", color="tab:red", ms=8, label="failed")
+    best = int(table["n_cycles"][ok].max()) if ok.any() else None
+    ax.set_title(f"search {name}: largest converged = {best}", fontsize=10)
+    ax.set_xlabel("cycles in the OCP")
+    ax.set_ylabel("wall time (s)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"search_{run_prefix(name)}")
+
+
+def _png_as_pdf(png: Path) -> Path:
+    """A PDF page holding a PNG (raster), for figures drawn elsewhere as PNG only."""
+    import matplotlib.image
+
+    img = matplotlib.image.imread(png)
+    h, w = img.shape[:2]
+    fig = _figure(figsize=(w / DPI, h / DPI))
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.imshow(img)
+    ax.axis("off")
+    pdf = png.with_suffix(".pdf")
+    fig.savefig(pdf, dpi=DPI)
+    return pdf
+
+
+def read_forward_studies(path: Path) -> ForwardStudiesResult:
+    """Rebuild the in-memory forward-study results from ``forward_studies.h5`` (layout: docs/results.md)."""
+    from fatigue_pin.fatigue.models import FatigueParams, FatigueTrajectory
+    from fatigue_pin.paper.forward import ForwardStudiesResult, ForwardStudyConfig, Study2Run
+
+    def trajectory(g: h5py.Group) -> FatigueTrajectory:
+        a = g.attrs
+        params = FatigueParams(LD=float(a["LD"]), LR=float(a["LR"]), F=float(a["F"]), R=float(a["R"]),
+                               S=float(a["S"]), r=float(a.get("r", 1.0)))
+        return FatigueTrajectory(g["t"][()], g["ma"][()], g["mr"][()], g["mf"][()], params, str(a["method"]),
+                                 float(a["rtol"]), float(a["atol"]), bool(a["success"]), "", int(a["nfev"]))
+
+    with h5py.File(path, "r") as h5:
+        s1 = {k: trajectory(h5[f"study1/{k}"]) for k in ("3cc", "3cc_s")}
+        g0 = h5["study1/3cc"]
+        refs: dict[float, FatigueTrajectory] = {}
+        runs: list[Study2Run] = []
+        groups = [h5[f"study2/{k}"] for k in h5["study2"]]
+        for g in groups:
+            if g.attrs["role"] == "reference":
+                refs[float(g.attrs["S"])] = trajectory(g)
+        refs = dict(sorted(refs.items()))
+        for g in sorted((g for g in groups if g.attrs["role"] == "perturbed"),
+                        key=lambda g: (float(g.attrs["S"]), -float(g.attrs["m0"][1]))):
+            a = g.attrs
+            runs.append(Study2Run(
+                S=float(a["S"]), mr0=float(a["m0"][1]), trajectory=trajectory(g), reference=refs[float(a["S"])],
+                time_to_precision=tuple(a["time_to_precision"]), time_to_first_precision=tuple(a["time_to_first_precision"]),
+                final_abs_error=tuple(a["final_abs_error"]), max_error_after_1s=float(a["max_error_after_1s"]),
+            ))
+        cfg = ForwardStudyConfig(
+            params=s1["3cc"].params.with_(S=0.0), TL=float(g0.attrs["TL"]), t_end=float(g0.attrs["t_end"]),
+            n_eval=int(h5.attrs.get("n_eval", g0["t"].shape[0])), method=str(g0.attrs["method"]),
+            rtol=float(g0.attrs["rtol"]), atol=float(g0.attrs["atol"]), study1_S=float(h5["study1/3cc_s"].attrs["S"]),
+            study2_S=tuple(refs), study2_mr0=tuple(dict.fromkeys(r.mr0 for r in runs)),
+            precisions=tuple(float(p) for p in h5.attrs["precisions"]),
+        )
+        rmse = np.asarray(g0.attrs["rmse"], dtype=float)
+        final = np.asarray(g0.attrs["final_abs_error"], dtype=float)
+    return ForwardStudiesResult(cfg, s1, rmse, final, tuple(runs), refs, Path(path))
+
+
+def plot_forward_file(path: Path, out_dir: Path) -> list[Path]:
+    """The forward-study figures of ``forward_studies.h5``, drawn by
+    :func:`fatigue_pin.paper.forward.plot_forward_studies` (PNG), each also as a raster PDF."""
+    from fatigue_pin.paper.forward import plot_forward_studies
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: list[Path] = []
+    for png in plot_forward_studies(read_forward_studies(path), out).values():
+        paths += [png, _png_as_pdf(png)]
+    return paths
+
+
+def plot_file(path: Path, out_dir: Path) -> list[Path]:
+    """Every applicable figure of a result file: per run (and a comparison when there are
+    several), per max-cycles search, or the forward studies. Returns the files written."""
+    path = Path(path)
+    if path.is_dir() and (path / "summary.csv").is_file():  # a sweep's output folder
+        from fatigue_pin.viz.sweeps import plot_sweep
+
+        return plot_sweep(path, out_dir)
+    runs = list_runs(path)  # also checks that the file is readable HDF5
+    if runs:
+        loaded = [read_run(path, name) for name in runs]
+        paths: list[Path] = []
+        for run in loaded:
+            paths += plot_run(run, out_dir)
+        if len(loaded) > 1:
+            paths += plot_comparison(loaded, out_dir)
+        for name, table in read_search(path).items():
+            if len(table):
+                paths += plot_search(name, table, out_dir)
+        return paths
+    with h5py.File(path, "r") as h5:
+        forward = "study1" in h5 and "study2" in h5
+        searches = "search" in h5
+    if forward:
+        return plot_forward_file(path, out_dir)
+    if searches:
+        return [p for name, table in read_search(path).items() if len(table) for p in plot_search(name, table, out_dir)]
+    raise ResultFileError(f"{str(path)!r} holds neither OCP runs, max-cycles searches nor forward studies")

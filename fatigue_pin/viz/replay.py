@@ -1,0 +1,624 @@
+"""Replay an OCP run in the browser with meshcat, fatigue shown as colour on the model.
+
+The scene holds the model's visual geometry (from the URDF stored in the run, or the bundled
+arm26) and, for every actuated joint, two spheres next to the joint: the flexion half
+(``<joint>_plus``, anterior, +x of the parent body) and the extension half (``<joint>_minus``,
+posterior). Each sphere is coloured by the fatigued fraction ``mf`` of its half, green (0) ->
+yellow (0.5) -> red (1); the segment driven by a joint is coloured by the larger ``mf`` of the
+joint's two halves. The motion plays in real time (one frame per node, 0.02 s), cycle after cycle.
+
+Three ways to watch a run:
+
+* :func:`export_html`: one self-contained HTML file (meshcat's viewer inlined, no server); the
+  animation plays in a loop as soon as the page opens, the meshcat panel (top right,
+  "Animations") pauses, scrubs and slows it; an overlay shows the cycle and the colour scale.
+* :func:`serve`: a meshcat server on 127.0.0.1 only; Python plays the frames, a prompt picks the
+  cycle.
+* :func:`build_animation`: the scene and its :class:`meshcat.animation.Animation`, to embed elsewhere.
+
+Colours are keyframed as three.js ``material.color`` tracks of the meshes (meshcat's animation
+player accepts any three.js track type); this needs the meshes to exist before the animation is
+loaded, which is why :func:`export_html` writes the commands in recorded order rather than
+meshcat's ``static_html`` (whose scene walk sends the animation before the objects).
+
+Cycle numbers shown to people (overlay, prompt, ``--cycle``) start at 1; the ``cycles``
+arguments of the functions are 0-based indices like :meth:`RunResult.cycle_slice`.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+import subprocess
+import sys
+import time
+import webbrowser
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fatigue_pin.io.results import ResultFileError, RunResult
+
+#: Address every server of this module binds to: the local machine only.
+LOCALHOST = "127.0.0.1"
+
+#: Fatigue colour scale: mf = 0, 0.5, 1 -> green, yellow, red (RGB in [0, 1]).
+FATIGUE_COLORS = np.array([[0.15, 0.70, 0.25], [0.98, 0.80, 0.10], [0.85, 0.10, 0.10]])
+
+ROOT = "fatigue_pin"  # meshcat root node of the model
+_MARKER_RADIUS = 0.022  # m
+_MARKER_OFFSET = (0.05, 0.0, 0.04)  # m, in the parent body frame at the joint: (anterior, -, lateral)
+
+
+def fatigue_color(mf: np.ndarray | float) -> np.ndarray:
+    """RGB colour of a fatigued fraction: green (0) -> yellow (0.5) -> red (1); shape (..., 3)."""
+    x = np.clip(np.asarray(mf, dtype=float), 0.0, 1.0)[..., None] * 2.0
+    lo = np.minimum(np.floor(x), 1.0).astype(int)[..., 0]
+    w = x - lo[..., None]
+    return (1.0 - w) * FATIGUE_COLORS[lo] + w * FATIGUE_COLORS[lo + 1]
+
+
+# -- model ---------------------------------------------------------------------------------------
+
+
+def build_models(urdf: str = "") -> tuple[Any, Any]:
+    """Pinocchio model and visual geometry model from URDF text (empty: the bundled arm26).
+
+    Only kinematics and visuals are built; no dynamics, no compiled extension.
+    """
+    import pinocchio as pin
+
+    if not urdf.strip():
+        from fatigue_pin.robot.model import bundled_urdf
+
+        urdf = bundled_urdf().read_text()
+    from fatigue_pin.robot.model import package_dirs
+
+    model = pin.buildModelFromXML(urdf)
+    try:
+        visual = pin.buildGeomFromUrdfString(model, urdf, pin.GeometryType.VISUAL, package_dirs=package_dirs())
+    except ValueError as exc:  # a mesh that cannot be found
+        raise ResultFileError(f"the run's model has visuals that cannot be loaded: {exc}") from None
+    return model, visual
+
+
+def _half_columns(run: RunResult, joint: str) -> tuple[int, int]:
+    """Columns of ``<joint>_plus`` and ``<joint>_minus`` in ``mf``."""
+    names = list(run.actuator_names)
+    try:
+        return names.index(f"{joint}_plus"), names.index(f"{joint}_minus")
+    except ValueError:
+        raise ResultFileError(
+            f"run {run.name!r}: no actuator halves {joint}_plus / {joint}_minus among {names}"
+        ) from None
+
+
+@dataclass
+class _Kinematics:
+    """What moves and what is coloured, for one run on one model."""
+
+    model: Any
+    visual: Any
+    joint_ids: list[int]  # Pinocchio joint id of every run joint
+    halves: list[tuple[int, int]]  # (plus, minus) mf columns of every run joint
+    segment_of: dict[str, int] = field(default_factory=dict)  # visual name -> index of its joint in joint_ids
+    # coloured visuals whose mesh file (Collada) is sent as triangles: a Collada scene is a group
+    # without one material, so its colour could not be keyframed; the triangles are the mesh as
+    # Pinocchio loaded it (coal, scale applied), with one Phong material
+    triangle_meshes: set[str] = field(default_factory=set)
+
+    def visual_path(self, name: str) -> str:
+        return f"{ROOT}/visuals/{name}"
+
+    @staticmethod
+    def marker_path(joint: str, sign: str) -> str:
+        return f"{ROOT}/fatigue/{joint}_{sign}"
+
+
+def _kinematics(run: RunResult) -> _Kinematics:
+    import pinocchio as pin
+
+    model, visual = build_models(run.urdf)
+    joint_ids = []
+    for name in run.joint_names:
+        if not model.existJointName(name):
+            raise ResultFileError(f"run {run.name!r}: joint {name!r} is not in the model's URDF")
+        joint_ids.append(model.getJointId(name))
+    if model.nq != run.q.shape[1]:
+        raise ResultFileError(f"run {run.name!r}: q has {run.q.shape[1]} columns, the model nq = {model.nq}")
+    kin = _Kinematics(model, visual, joint_ids, [_half_columns(run, j) for j in run.joint_names])
+    # A visual is a segment of joint j when its body is attached to joint j directly (not
+    # through a fixed joint: the dumbbell keeps its colour).
+    for g in visual.geometryObjects:
+        frame = model.frames[g.parentFrame]
+        previous = model.frames[frame.parentFrame]
+        if previous.type == pin.FrameType.JOINT and g.parentJoint in joint_ids:
+            kin.segment_of[g.name] = joint_ids.index(g.parentJoint)
+            if g.meshPath.lower().endswith(".dae") and hasattr(g.geometry, "num_tris"):
+                kin.triangle_meshes.add(g.name)
+    return kin
+
+
+def _poses(kin: _Kinematics, q: np.ndarray) -> dict[str, np.ndarray]:
+    """World placements (4 x 4) of every visual and fatigue marker at configuration ``q``, by meshcat path."""
+    import pinocchio as pin
+
+    model, data = kin.model, kin.model.createData()
+    gdata = pin.GeometryData(kin.visual)
+    pin.forwardKinematics(model, data, q)
+    pin.updateGeometryPlacements(model, data, kin.visual, gdata)
+    out = {}
+    for k, g in enumerate(kin.visual.geometryObjects):
+        T = gdata.oMg[k].homogeneous.copy()
+        if g.name not in kin.triangle_meshes:  # the triangles are already scaled
+            T[:3, :3] = T[:3, :3] @ np.diag(g.meshScale)
+        out[kin.visual_path(g.name)] = T
+    for jid in kin.joint_ids:
+        at_joint = data.oMi[model.parents[jid]] * model.jointPlacements[jid]
+        for sign, s in (("plus", 1.0), ("minus", -1.0)):
+            offset = np.array(_MARKER_OFFSET) * (s, 1.0, 1.0)
+            M = at_joint * pin.SE3(np.eye(3), offset)
+            out[kin.marker_path(model.names[jid], sign)] = M.homogeneous
+    return out
+
+
+def _colors(kin: _Kinematics, mf_row: np.ndarray) -> dict[str, np.ndarray]:
+    """RGB of every fatigue marker and coloured segment for one node of ``mf`` (halves,), by meshcat path."""
+    out = {}
+    for jid, (p, m) in zip(kin.joint_ids, kin.halves):
+        name = kin.model.names[jid]
+        out[kin.marker_path(name, "plus")] = fatigue_color(mf_row[p])
+        out[kin.marker_path(name, "minus")] = fatigue_color(mf_row[m])
+    for gname, j in kin.segment_of.items():
+        p, m = kin.halves[j]
+        out[kin.visual_path(gname)] = fatigue_color(max(mf_row[p], mf_row[m]))
+    return out
+
+
+# -- scene ---------------------------------------------------------------------------------------
+
+
+class _Recorder:
+    """Stand-in for a meshcat ``ViewerWindow``: keeps the commands, in order, instead of sending them."""
+
+    def __init__(self) -> None:
+        self.commands: list[Any] = []
+        self.web_url = ""
+
+    def send(self, command: Any) -> None:
+        self.commands.append(command)
+
+
+@dataclass
+class ReplayScene:
+    """A recorded meshcat scene of one run and its animation.
+
+    Attributes:
+        run_name: the run.
+        cycles: the 0-based cycles animated, in play order.
+        fps: frame rate of the meshcat clip (frames per second).
+        n_frames: number of frames (one per node; consecutive cycles share their boundary node).
+        frame_times_s: time of every frame in the animation (s), (n_frames,): the nodes' times,
+            so the animation plays in real time.
+        cycle_frames: (first, last) frame index of each animated cycle, both included.
+        visualizer: ``meshcat.Visualizer`` whose window records the commands.
+        animation: the ``meshcat.animation.Animation`` (poses and colours of every frame).
+        frames: per frame, the meshcat path -> placement (4 x 4) and path -> RGB dictionaries.
+    """
+
+    run_name: str
+    cycles: list[int]
+    fps: int
+    n_frames: int
+    frame_times_s: np.ndarray
+    cycle_frames: list[tuple[int, int]]
+    visualizer: Any
+    animation: Any
+    frames: list[tuple[dict[str, np.ndarray], dict[str, np.ndarray]]] = field(repr=False)
+
+    @property
+    def duration_s(self) -> float:
+        """Length of the animation (s)."""
+        return float(self.frame_times_s[-1])
+
+    @property
+    def cycle_start_s(self) -> np.ndarray:
+        """Start time (s) of each animated cycle in the animation, (len(cycles),)."""
+        return self.frame_times_s[[first for first, _ in self.cycle_frames]]
+
+    @property
+    def scene_commands(self) -> list[Any]:
+        """The recorded meshcat commands that build the scene (objects, first frame, camera)."""
+        return list(self.visualizer.window.commands)
+
+
+def _set_camera(vis: Any, target: np.ndarray, eye: np.ndarray) -> None:
+    """Centre the view on ``target`` and put the camera at ``eye`` (world frame, m).
+
+    meshcat 0.3.2's orbit controls always look at the world origin, so the model's root node is
+    shifted by ``-target`` instead of moving the camera target. The camera lives in a frame
+    rotated by Rx(pi/2): world (x, y, z) is (x, z, -y) there.
+    """
+    shift = np.eye(4)
+    shift[:3, 3] = -np.asarray(target, dtype=float)
+    vis[ROOT].set_transform(shift)
+    d = np.asarray(eye, dtype=float) - np.asarray(target, dtype=float)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [float(d[0]), float(d[2]), float(-d[1])])
+
+
+def _camera_for(frames: list[tuple[dict[str, np.ndarray], dict[str, np.ndarray]]]) -> tuple[np.ndarray, np.ndarray]:
+    """Camera (target, eye), world frame (m): beside the model (lateral, -y for arm26) and a little
+    in front of and above it, at the distance where the whole motion fills the view."""
+    pts = np.array([T[:3, 3] for poses, _ in frames[:: max(1, len(frames) // 100)] for T in poses.values()])
+    lo, hi = pts.min(axis=0) - 0.12, pts.max(axis=0) + 0.12
+    target = (lo + hi) / 2
+    half = float(np.max(hi - lo)) / 2
+    direction = np.array([0.55, -0.8, 0.3])
+    distance = 1.5 * half / np.tan(np.radians(37.5))  # meshcat's camera: 75 deg vertical field of view
+    return target, target + direction / np.linalg.norm(direction) * distance
+
+
+def _select_cycles(run: RunResult, cycles: Sequence[int] | None) -> list[int]:
+    chosen = list(range(run.n_cycles)) if cycles is None else [int(c) for c in cycles]
+    if not chosen:
+        raise ResultFileError(f"run {run.name!r}: no cycle to replay")
+    for c in chosen:
+        run.cycle_slice(c)  # raises a clear error when out of range
+    return chosen
+
+
+def _frame_nodes(run: RunResult, cycles: list[int]) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """Node index and time (s) of every frame, and the (first, last) frame of each cycle: each
+    cycle's nodes in turn, the boundary node of two consecutive cycles once; a jump between
+    non-consecutive cycles takes one interval."""
+    nodes: list[int] = []
+    times: list[float] = []
+    spans: list[tuple[int, int]] = []
+    for c in cycles:
+        s = run.cycle_slice(c)
+        idx = list(range(s.start, s.stop))
+        t = list(run.t[s] - run.t[s.start] + (times[-1] if times else 0.0))
+        if nodes and nodes[-1] == idx[0]:
+            idx, t = idx[1:], t[1:]
+            spans.append((len(nodes) - 1, len(nodes) + len(idx) - 1))
+        else:
+            if times:
+                t = [v + float(run.t[s.start + 1] - run.t[s.start]) for v in t]
+            spans.append((len(nodes), len(nodes) + len(idx) - 1))
+        nodes.extend(idx)
+        times.extend(t)
+    return np.asarray(nodes), np.asarray(times), spans
+
+
+def _send_triangle_meshes(vis: Any, kin: _Kinematics) -> None:
+    """Replace the Collada objects of coloured segments by their triangles with a Phong material
+    (see :attr:`_Kinematics.triangle_meshes`); the Collada commands are dropped from the record."""
+    if not kin.triangle_meshes:
+        return
+    import meshcat.geometry as mg
+    from pinocchio.visualize.meshcat_visualizer import loadMesh
+
+    paths = {kin.visual_path(name) for name in kin.triangle_meshes}
+    full = {vis[p].path.lower() for p in paths}
+    vis.window.commands = [c for c in vis.window.commands
+                           if not (type(c).__name__ in ("SetObject", "DaeMeshGeometry") and getattr(c, "path", None) is not None
+                                   and c.path.lower() in full)]
+    for g in kin.visual.geometryObjects:
+        if g.name in kin.triangle_meshes:
+            rgb = np.clip(np.asarray(g.meshColor[:3], dtype=float), 0.0, 1.0)
+            color = int(round(255 * rgb[0])) * 65536 + int(round(255 * rgb[1])) * 256 + int(round(255 * rgb[2]))
+            vis[kin.visual_path(g.name)].set_object(loadMesh(g.geometry), mg.MeshPhongMaterial(color=color))
+
+
+def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 50) -> ReplayScene:
+    """Meshcat scene of ``run`` (visuals, fatigue markers, camera) and its animation.
+
+    Args:
+        run: an OCP run; its ``urdf`` attribute gives the model (bundled arm26 if empty).
+        cycles: 0-based cycles to animate, in play order (default: all).
+        fps: frame rate of the meshcat clip; keys sit at the nodes' times (every 0.02 s in the
+            paper's task), so the playback is in real time whatever the rate.
+
+    Returns:
+        The recorded scene; nothing is sent anywhere (see :func:`export_html`, :func:`serve`).
+    """
+    import meshcat
+    import meshcat.geometry as mg
+    from meshcat.animation import Animation
+    from pinocchio.visualize import MeshcatVisualizer
+
+    chosen = _select_cycles(run, cycles)
+    kin = _kinematics(run)
+    nodes, times, spans = _frame_nodes(run, chosen)
+    frames = [(_poses(kin, run.q[k]), _colors(kin, run.fatigued[k])) for k in nodes]
+
+    vis = meshcat.Visualizer(window=_Recorder())
+    viz = MeshcatVisualizer(kin.model, None, kin.visual)
+    viz.initViewer(viewer=vis)
+    viz.loadViewerModel(rootNodeName=ROOT)
+    _send_triangle_meshes(vis, kin)
+    for jid in kin.joint_ids:
+        for sign in ("plus", "minus"):
+            path = kin.marker_path(kin.model.names[jid], sign)
+            vis[path].set_object(mg.Sphere(_MARKER_RADIUS), mg.MeshPhongMaterial(color=0x26b340))
+    poses0, colors0 = frames[0]
+    for path, T in poses0.items():
+        vis[path].set_transform(T)
+    for path, rgb in colors0.items():
+        vis[path].set_property("color", [*map(float, rgb), 1.0])
+    vis["/Axes"].set_property("visible", False)
+    vis["/Grid"].set_property("visible", False)
+    _set_camera(vis, *_camera_for(frames))
+
+    anim = Animation(default_framerate=fps)
+    for t, (poses, colors) in zip(times, frames):
+        with anim.at_frame(vis, float(t * fps)) as frame:
+            for path, T in poses.items():
+                frame[path].set_transform(T)
+            for path, rgb in colors.items():
+                frame[path]["<object>"].set_property("material.color", "color", [float(v) for v in rgb])
+
+    return ReplayScene(run.name, chosen, fps, len(frames), times, spans, vis, anim, frames)
+
+
+# -- static HTML ---------------------------------------------------------------------------------
+
+_OVERLAY = """
+<div id="fp-overlay" style="position:fixed;left:10px;top:10px;font:14px sans-serif;color:#222;
+     background:rgba(255,255,255,0.8);padding:6px 10px;border-radius:4px;pointer-events:none">
+  <div><b id="fp-title"></b></div>
+  <div id="fp-cycle" style="font-size:20px;margin:2px 0"></div>
+  <div style="display:flex;align-items:center;gap:6px">mf 0
+    <span style="display:inline-block;width:120px;height:10px;background:linear-gradient(to right,__SCALE__)"></span> 1</div>
+  <div style="font-size:11px">spheres: flexion (front) / extension (back) half of each joint;<br>
+    segments: the more fatigued half of their joint</div>
+</div>
+"""
+
+_PLAYER_JS = """
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+(function () {
+  var meta = __META__;
+  var commands = __COMMANDS__;
+  for (var i = 0; i < commands.length; i++) {
+    var s = atob(commands[i]), a = new Uint8Array(s.length);
+    for (var k = 0; k < s.length; k++) a[k] = s.charCodeAt(k);
+    viewer.handle_command_bytearray(a);
+  }
+  document.getElementById("fp-title").textContent = meta.title;
+  var label = document.getElementById("fp-cycle");
+  function update() {
+    var acts = viewer.animator.actions, t = acts.length ? acts[0].time : 0, j = 0;
+    while (j + 1 < meta.starts.length && t >= meta.starts[j + 1] - 1e-9) j++;
+    label.textContent = "cycle " + meta.cycles[j] + " of " + meta.n_cycles + "   t = " + t.toFixed(2) + " s";
+    requestAnimationFrame(update);
+  }
+  update();
+})();
+"""
+
+
+def _packed(command: Any) -> str:
+    import umsgpack
+
+    return base64.b64encode(umsgpack.packb(command.lower())).decode("ascii")
+
+
+def scene_html(scene: ReplayScene, n_cycles: int, loop: bool = True) -> str:
+    """Self-contained HTML page of a recorded scene and its animation (meshcat's viewer inlined)."""
+    import meshcat
+    from meshcat.commands import SetAnimation
+
+    js_path = Path(meshcat.__file__).parent / "viewer" / "dist" / "main.min.js"
+    commands = [*scene.scene_commands, SetAnimation(scene.animation, play=True, repetitions=float("inf") if loop else 1)]
+    meta = {
+        "title": f"fatigue_pin replay: {scene.run_name}",
+        "cycles": [c + 1 for c in scene.cycles],
+        "n_cycles": n_cycles,
+        "starts": [float(s) for s in scene.cycle_start_s],
+    }
+    player = _PLAYER_JS.replace("__META__", json.dumps(meta).replace("</", "<\\/")).replace(
+        "__COMMANDS__", json.dumps([_packed(c) for c in commands])
+    )
+    scale = ",".join("rgb({},{},{})".format(*(round(255 * v) for v in rgb)) for rgb in FATIGUE_COLORS)
+    return (
+        "<!DOCTYPE html>\n<html>\n<head><meta charset=\"utf-8\"><title>"
+        + html.escape(meta["title"])
+        + "</title>\n<style>body{margin:0} #meshcat-pane{width:100vw;height:100vh;overflow:hidden}</style>\n</head>\n<body>\n"
+        + '<div id="meshcat-pane"></div>\n'
+        + _OVERLAY.replace("__SCALE__", scale)
+        + "<script>\n"
+        + js_path.read_text()
+        + "\n</script>\n<script>\n"
+        + player
+        + "</script>\n</body>\n</html>\n"
+    )
+
+
+def export_html(run: RunResult, out_html: Path, cycles: list[int] | None = None, loop: bool = True) -> Path:
+    """Write a self-contained HTML replay of ``run`` (no server needed; opens in any browser).
+
+    Args:
+        run: the OCP run.
+        out_html: output file (parent folders are created).
+        cycles: 0-based cycles to play (default: all).
+        loop: replay forever (True) or once, then rest at the first frame.
+
+    Returns:
+        ``out_html``.
+    """
+    scene = build_animation(run, cycles)
+    out = Path(out_html)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(scene_html(scene, run.n_cycles, loop), encoding="utf-8")
+    return out
+
+
+# -- live server ---------------------------------------------------------------------------------
+
+
+@dataclass
+class LocalServer:
+    """A meshcat server subprocess bound to 127.0.0.1 (HTTP/websocket and ZeroMQ).
+
+    Attributes:
+        process: the server process.
+        zmq_url: where Python sends commands (``tcp://127.0.0.1:<port>``).
+        web_url: the page to open (``http://127.0.0.1:<port>/static/``).
+    """
+
+    process: subprocess.Popen
+    zmq_url: str
+    web_url: str
+
+    def close(self) -> None:
+        """Stop the server process."""
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+
+    def __enter__(self) -> LocalServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _run_local_server() -> None:
+    """Body of the server subprocess: meshcat's ZMQ/websocket bridge with every socket on 127.0.0.1.
+
+    meshcat 0.3.2 binds ZeroMQ to its ``host`` (127.0.0.1) but lets tornado listen on every
+    interface (``app.listen(port)``); the HTTP listener is pinned to 127.0.0.1 here.
+    """
+    from meshcat.servers.zmqserver import ZMQWebSocketBridge
+
+    class LocalBridge(ZMQWebSocketBridge):
+        def make_app(self):  # type: ignore[no-untyped-def]
+            app = super().make_app()
+            listen = app.listen
+            app.listen = lambda port, **kw: listen(port, address=LOCALHOST, **kw)
+            return app
+
+    bridge = LocalBridge(host=LOCALHOST)
+    print(f"zmq_url={bridge.zmq_url}", flush=True)
+    print(f"web_url={bridge.web_url}", flush=True)
+    try:
+        bridge.run()
+    except KeyboardInterrupt:
+        pass
+
+
+def start_local_server(timeout_s: float = 30.0) -> LocalServer:
+    """Start a meshcat server bound to 127.0.0.1 in a subprocess; returns once it listens."""
+    env = dict(os.environ)
+    package_parent = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (package_parent, env.get("PYTHONPATH", "")) if p)
+    proc = subprocess.Popen(
+        [sys.executable, "-u", "-c", "from fatigue_pin.viz.replay import _run_local_server; _run_local_server()"],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, start_new_session=True, text=True,
+    )
+    urls: dict[str, str] = {}
+    deadline = time.monotonic() + timeout_s
+    while len(urls) < 2:
+        line = proc.stdout.readline() if proc.stdout else ""
+        if not line:
+            if proc.poll() is not None or time.monotonic() > deadline:
+                proc.kill()
+                raise RuntimeError(f"the meshcat server did not start (exit code {proc.poll()})")
+            continue
+        key, _, value = line.strip().partition("=")
+        if key in ("zmq_url", "web_url"):
+            urls[key] = value
+    return LocalServer(proc, urls["zmq_url"], urls["web_url"])
+
+
+def play_frames(vis: Any, scene: ReplayScene, cycles: Sequence[int] | None = None,
+                say: Callable[[str], object] = print) -> None:
+    """Send the frames of ``cycles`` (0-based, among ``scene.cycles``; default: all) to a live
+    viewer in real time, printing each cycle's number as it starts."""
+    sent: dict[str, tuple[int, ...]] = {}  # colours as 8-bit RGB: send only changes (the server keeps every property)
+    t0 = time.monotonic()
+    elapsed = 0.0
+    for c in scene.cycles if cycles is None else cycles:
+        i = scene.cycles.index(c)
+        say(f"cycle {c + 1}")
+        first, last = scene.cycle_frames[i]
+        times = scene.frame_times_s[first: last + 1] - scene.frame_times_s[first]
+        for dt, (poses, colors) in zip(np.diff(times, prepend=0.0), scene.frames[first: last + 1]):
+            for path, T in poses.items():
+                vis[path].set_transform(T)
+            for path, rgb in colors.items():
+                rgb8 = tuple(int(round(v * 255)) for v in rgb)
+                if sent.get(path) != rgb8:
+                    sent[path] = rgb8
+                    vis[path].set_property("color", [v / 255 for v in rgb8] + [1.0])
+            elapsed += dt
+            delay = t0 + elapsed - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+
+def _ask_cycle(run: RunResult, input_fn: Callable[[str], str]) -> list[int] | None:
+    """Prompt until a valid answer: the cycles to play next (None: quit, []: replay the last ones)."""
+    n = run.n_cycles
+    while True:
+        try:
+            answer = input_fn(f"[Enter] replay, 1-{n}: play that cycle, a: all cycles, q: quit > ").strip().lower()
+        except EOFError:
+            return None
+        if answer == "q":
+            return None
+        if answer == "":
+            return []
+        if answer == "a":
+            return list(range(n))
+        if answer.isdigit() and 1 <= int(answer) <= n:
+            return [int(answer) - 1]
+        print(f"not a cycle number between 1 and {n}: {answer!r}")
+
+
+def serve(
+    run: RunResult,
+    cycle: int | None = None,
+    open_browser: bool = False,
+    input_fn: Callable[[str], str] = input,
+    wait_for_browser: bool = True,
+) -> None:
+    """Play ``run`` in a browser through a meshcat server on 127.0.0.1, with a prompt to pick cycles.
+
+    Prints the URL, waits for a browser to open it, then plays ``cycle`` (0-based; default: every
+    cycle in turn) in real time. At the prompt: Enter replays, a number (1-based) plays that
+    cycle, ``a`` plays all cycles, ``q`` (or end of input) quits. The server stops on return.
+    """
+    import meshcat
+
+    scene = build_animation(run)
+    selection = list(range(run.n_cycles)) if cycle is None else _select_cycles(run, [cycle])
+    with start_local_server() as server:
+        vis = meshcat.Visualizer(zmq_url=server.zmq_url)
+        print(f"fatigue_pin: replay of {run.name!r} ({run.n_cycles} cycles) at {server.web_url} (this machine only)")
+        if open_browser:
+            webbrowser.open(server.web_url, new=2)
+        if wait_for_browser:
+            print("waiting for a browser to open the page ...")
+            vis.wait()
+        for command in scene.scene_commands:
+            vis.window.send(command)
+        try:
+            while True:
+                play_frames(vis, scene, selection)
+                answer = _ask_cycle(run, input_fn)
+                if answer is None:
+                    return
+                selection = answer or selection
+        except KeyboardInterrupt:
+            print()

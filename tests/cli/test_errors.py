@@ -1,0 +1,488 @@
+"""The bad-input catalogue (docs/errors.md): every kind of bad input, on the command line, in
+study files, URDFs, result files and the Python API, is refused with one line naming the bad
+value, exit code 2, no traceback (``--debug`` shows it), and an existing result file left byte
+for byte as it was.
+
+``python tests/test_errors.py`` prints the catalogue's table with the messages as they are now
+(paths shortened to ``TMP/``), the source of docs/errors.md.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+import subprocess
+import sys
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from fatigue_pin.cli.main import main  # noqa: E402
+from fatigue_pin.core.errors import FatiguePinError  # noqa: E402
+from fatigue_pin.io.results import write_run, write_search  # noqa: E402
+from fatigue_pin.io.study import to_toml  # noqa: E402
+from conftest import make_run  # noqa: E402
+
+
+def _base_study() -> dict[str, Any]:
+    """The small curl (10 intervals, 2 substeps, uncompiled) as a parsed study file."""
+    from fatigue_pin.paper.curl import curl_study
+
+    study = curl_study("full", intervals_per_cycle=10, substeps=2, solver={"compile": False})
+    return tomllib.loads(study.to_toml())
+
+
+BASE = _base_study()
+
+
+class Env:
+    """Files of one case: a folder, an existing result file, and makers of bad inputs."""
+
+    def __init__(self, tmp: Path):
+        self.tmp = tmp
+        self.existing = tmp / "existing.h5"  # every command that writes is pointed at it
+        write_run(self.existing, make_run("full/a"))
+        write_run(self.existing, make_run("full/b"))
+        self.watched = [self.existing]
+
+    def path(self, name: str) -> str:
+        return str(self.tmp / name)
+
+    def write(self, name: str, data: bytes | str) -> str:
+        p = self.tmp / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_bytes(data if isinstance(data, bytes) else data.encode())
+        return str(p)
+
+    def study(self, mutate: Callable[[dict], Any] | None = None, extra: str = "", name: str = "study.toml") -> str:
+        data = copy.deepcopy(BASE)
+        if mutate is not None:
+            mutate(data)
+        return self.write(name, to_toml(data) + extra)
+
+    def urdf(self, change: Callable[[str], str], name: str = "robot.urdf") -> str:
+        from fatigue_pin.robot.model import bundled_urdf
+
+        return self.write(name, change(bundled_urdf().read_text()))
+
+    def result(self, name: str, layout: int | None = None, truncate: bool = False) -> str:
+        import h5py
+
+        p = self.tmp / name
+        write_run(p, make_run("full/a"))
+        write_search(p, "s", [{"n_cycles": 1, "converged": True, "status": "ok", "iterations": 3, "wall_time_s": 0.1}])
+        if layout is not None:
+            with h5py.File(p, "a") as h5:
+                h5.attrs["format"] = f"fatigue_pin.results/{layout}"
+        if truncate:
+            data = p.read_bytes()
+            p.write_bytes(data[: len(data) // 2])
+        self.watched.append(p)
+        return str(p)
+
+
+def _set(*keys_value):
+    *keys, value = keys_value
+
+    def mutate(data: dict) -> None:
+        node = data
+        for k in keys[:-1]:
+            node = node[k]
+        node[keys[-1]] = value
+
+    return mutate
+
+
+def _delete(*keys):
+    def mutate(data: dict) -> None:
+        node = data
+        for k in keys[:-1]:
+            node = node[k]
+        del node[keys[-1]]
+
+    return mutate
+
+
+def _sliding(window: int, max_cycles: int):
+    def mutate(data: dict) -> None:
+        data["horizon"].update(kind="sliding", cycles=window, max_cycles=max_cycles)
+
+    return mutate
+
+
+def _zero_mass(text: str) -> str:
+    text = re.sub(r'<mass value="[0-9.eE+-]+"\s*/>', '<mass value="0"/>', text)
+    return re.sub(r"<inertia [^/]*/>", '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>', text)
+
+
+@dataclass
+class Case:
+    """One kind of bad input.
+
+    Attributes:
+        id: short name; group: where the input enters; what: the input, for the catalogue.
+        argv: the command line (from the case's Env), or None for a Python API case.
+        api: for a Python API case, a call that must raise.
+        message: a regular expression the error line must match (it names the bad value).
+    """
+
+    id: str
+    group: str
+    what: str
+    message: str
+    argv: Callable[[Env], list[str]] | None = None
+    api: Callable[[Env], Any] | None = None
+
+
+def _run(study: Callable[[Env], str]) -> Callable[[Env], list[str]]:
+    return lambda e: ["run", study(e), "--out", str(e.existing)]
+
+
+CLI, PATHS, URDF, STUDY, API, FILES = "command line", "paths", "URDF", "study file", "Python API", "result files"
+
+CASES: list[Case] = [
+    # -- the command line ----------------------------------------------------------------------
+    Case("unknown-command", CLI, "an unknown command", r"invalid choice: 'frobnicate'", lambda e: ["frobnicate"]),
+    Case("not-an-integer", CLI, "`solve full --cycles abc`", r"argument --cycles: invalid int value: 'abc'",
+         lambda e: ["solve", "full", "--cycles", "abc", "--out", str(e.existing)]),
+    Case("bad-choice", CLI, "`--cost speed`", r"argument --cost: invalid choice: 'speed'",
+         lambda e: ["solve", "full", "--cost", "speed", "--out", str(e.existing)]),
+    Case("missing-option", CLI, "`solve full` without `--out`", r"required: --out", lambda e: ["solve", "full"]),
+    Case("zero-cycles", CLI, "`solve full --cycles 0`", r"--cycles 0: expected an integer number of cycles >= 1",
+         lambda e: ["solve", "full", "--cycles", "0", "--no-compile", "--out", str(e.existing)]),
+    Case("negative-stabiliser", CLI, "`--stabilization -1`", r"S = -1.0: expected a finite rate >= 0",
+         lambda e: ["solve", "full", "-S", "-1", "--out", str(e.existing)]),
+    Case("nan-stabiliser", CLI, "`--stabilization nan`", r"S = nan: expected a finite rate >= 0",
+         lambda e: ["solve", "full", "-S", "nan", "--out", str(e.existing)]),
+    Case("window-longer-than-run", CLI, "`solve sliding --window 4 --max-cycles 2`",
+         r"horizon.max_cycles = 2: expected at least the window, cycles = 4",
+         lambda e: ["solve", "sliding", "--window", "4", "--max-cycles", "2", "--out", str(e.existing)]),
+    Case("advance-beyond-window", CLI, "`solve sliding --window 2 --advance 3`", r"horizon.advance = 3",
+         lambda e: ["solve", "sliding", "--window", "2", "--advance", "3", "--out", str(e.existing)]),
+    Case("n-max-zero", CLI, "`max-cycles --n-max 0`", r"--n-max 0: expected an integer number of cycles >= 1",
+         lambda e: ["max-cycles", "--n-max", "0", "--out", str(e.existing)]),
+    Case("negative-max-iter", CLI, "`--max-iter -1`", r"solver.max_iter = -1: expected an integer >= 0",
+         lambda e: ["solve", "full", "--max-iter", "-1", "--out", str(e.existing)]),
+    Case("set-without-value", CLI, "`run --set fatigue.S`", r"--set 'fatigue.S': expected KEY=VALUE",
+         lambda e: ["run", e.study(), "--set", "fatigue.S", "--out", str(e.existing)]),
+    Case("set-unknown-key", CLI, "`run --set nosuch.key=1`", r"study key 'nosuch.key' does not exist",
+         lambda e: ["run", e.study(), "--set", "nosuch.key=1", "--out", str(e.existing)]),
+    Case("cycle-out-of-range", CLI, "`replay --cycle 99` of a 2-cycle run", r"--cycle 99: run 'full/a' has cycles 1 to 2",
+         lambda e: ["replay", str(e.existing), "--run", "full/a", "--cycle", "99", "--html", e.path("r.html")]),
+    Case("zero-jobs", CLI, "`reproduce --jobs 0`", r"--jobs 0: expected a number of worker processes >= 1",
+         lambda e: ["reproduce", "--jobs", "0", "--out", e.path("reproduce")]),
+    # -- paths -----------------------------------------------------------------------------------
+    Case("out-unwritable", PATHS, "`--out /proc/x.h5` (a folder nobody can write to)", r"output folder '/proc' is not writable",
+         lambda e: ["solve", "sliding", "--out", "/proc/x.h5"]),
+    Case("out-is-folder", PATHS, "`--out` an existing folder", r"output '.*' is a folder; expected the path of an HDF5 result file",
+         lambda e: ["solve", "full", "--out", str(e.tmp)]),
+    Case("out-not-hdf5", PATHS, "`--out` an existing file that is not HDF5", r"exists and is not an HDF5 file",
+         lambda e: ["solve", "full", "--out", e.write("notes.txt", "my notes")]),
+    Case("out-parent-is-file", PATHS, "`--out` below a file (`notes.txt/x.h5`)", r"cannot be created: '.*notes.txt' is not a folder",
+         lambda e: ["solve", "full", "--out", str(Path(e.write("notes.txt", "x")) / "x.h5")]),
+    Case("out-truncated", PATHS, "`--out` a truncated result file", r"truncated or damaged",
+         lambda e: ["solve", "full", "--out", e.result("cut.h5", truncate=True)]),
+    Case("out-newer-layout", PATHS, "`--out` a result file of a newer layout",
+         r"was written by a newer fatigue_pin \(layout 3\); this version reads layouts up to 2",
+         lambda e: ["solve", "full", "--out", e.result("new.h5", layout=3)]),
+    Case("out-full-disk", PATHS, "`--out` on a full disk", r"full", lambda e: ["solve", "full", "--out", e.full_disk()]),
+    Case("folder-out-is-file", PATHS, "`plot --out` an existing file", r"output '.*' is a file; expected a folder",
+         lambda e: ["plot", str(e.existing), "--out", e.write("notes.txt", "x")]),
+    Case("folder-out-unwritable", PATHS, "`forward --out /proc/fp`", r"output folder '/proc/fp' is not writable",
+         lambda e: ["forward", "--out", "/proc/fp"]),
+    Case("demo-out-is-file", PATHS, "`demo --out` an existing file", r"is a file; expected a folder",
+         lambda e: ["demo", "--out", e.write("notes.txt", "x")]),
+    Case("html-is-folder", PATHS, "`replay --html` an existing folder", r"--html '.*' is a folder",
+         lambda e: ["replay", str(e.existing), "--run", "full/a", "--html", str(e.tmp)]),
+    Case("study-missing", PATHS, "a study file that does not exist", r"study file not found: '.*nope.toml'",
+         lambda e: ["run", e.path("nope.toml"), "--out", str(e.existing)]),
+    Case("study-is-folder", PATHS, "a study path that is a folder", r"study file '.*' is a folder",
+         lambda e: ["run", str(e.tmp), "--out", str(e.existing)]),
+    # -- URDFs -------------------------------------------------------------------------------------
+    Case("urdf-missing", URDF, "a URDF path that does not exist", r"URDF file not found: '.*nope.urdf'",
+         lambda e: ["info", "--urdf", e.path("nope.urdf")]),
+    Case("urdf-unparsable", URDF, "a URDF that is not XML", r"does not parse",
+         lambda e: ["info", "--urdf", e.write("bad.urdf", "<robot name='x'><link name='a'></robot")]),
+    Case("urdf-floating-base", URDF, "a floating base", r"joint 'world_to_thorax' is a floating base",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="world_to_thorax" type="fixed"',
+                                                                   'name="world_to_thorax" type="floating"'))]),
+    Case("urdf-continuous-joint", URDF, "a continuous joint", r"joint 'elbow' is of unsupported type",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="elbow" type="revolute"', 'name="elbow" type="continuous"'))]),
+    Case("urdf-no-effort", URDF, "a joint `<limit>` without `effort`", r"does not parse: joint \[shoulder\]: limit has no effort",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('effort="50.0"', "", 1))]),
+    Case("urdf-zero-effort", URDF, 'a joint with `effort="0"`', r"joint 'elbow' has effort limit 0.0; expected a finite effort > 0",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace(
+             'lower="0.0" upper="3.141592653589793" effort="50.0"', 'lower="0.0" upper="3.141592653589793" effort="0"'))]),
+    Case("urdf-zero-mass", URDF, "links of zero mass (in a study's `model.urdf`)", r"joint 'shoulder' moves no mass",
+         _run(lambda e: e.study(_set("model", "urdf", e.urdf(_zero_mass, "massless.urdf"))))),
+    # -- study files -------------------------------------------------------------------------------
+    Case("study-not-toml", STUDY, "a study file that is not TOML", r"is not valid TOML",
+         lambda e: ["run", e.write("bad.toml", "name = \n[model"), "--out", str(e.existing)]),
+    Case("study-binary", STUDY, "a binary file as study", r"is neither a TOML study nor an HDF5 result file",
+         lambda e: ["run", e.write("bin.toml", b"\xff\xfe\x00\x01"), "--out", str(e.existing)]),
+    Case("negative-rate", STUDY, "`fatigue.F = -1.0`", r"fatigue.F = -1.0: expected a finite rate >= 0",
+         _run(lambda e: e.study(_set("fatigue", "F", -1.0)))),
+    Case("infinite-rate", STUDY, "`fatigue.R = inf`", r"fatigue.R = inf: expected a finite rate >= 0",
+         _run(lambda e: e.study(_set("fatigue", "R", float("inf"))))),
+    Case("nan-rate", STUDY, "`fatigue.LD = nan`", r"fatigue.LD = nan: expected a finite rate >= 0",
+         _run(lambda e: e.study(_set("fatigue", "LD", float("nan"))))),
+    Case("negative-weight", STUDY, "`costs.torque = -1.0`", r"costs.torque.weight = -1.0: expected a finite weight >= 0",
+         _run(lambda e: e.study(_set("costs", "torque", -1.0)))),
+    Case("nan-weight", STUDY, "`costs.fatigue = nan`", r"costs.fatigue.weight = nan: expected a finite weight >= 0",
+         _run(lambda e: e.study(_set("costs", "fatigue", float("nan"))))),
+    Case("negative-duration", STUDY, "`task.cycle_duration = -1.0`", r"task.cycle_duration = -1.0: expected a duration in seconds > 0",
+         _run(lambda e: e.study(_set("task", "cycle_duration", -1.0)))),
+    Case("infinite-duration", STUDY, "`task.cycle_duration = inf`", r"task.cycle_duration = inf: expected a finite number",
+         _run(lambda e: e.study(_set("task", "cycle_duration", float("inf"))))),
+    Case("zero-intervals", STUDY, "`task.intervals_per_cycle = 0`", r"task.intervals_per_cycle = 0: expected an integer >= 1",
+         _run(lambda e: e.study(_set("task", "intervals_per_cycle", 0)))),
+    Case("negative-tolerance", STUDY, "`solver.tol = -1e-6`", r"solver.tol = -1e-06: expected a tolerance > 0",
+         _run(lambda e: e.study(_set("solver", "tol", -1e-6)))),
+    Case("negative-target-tolerance", STUDY, "a target with `tolerance = -0.1`",
+         r"task.targets\[1\].tolerance = -0.1: expected a tolerance >= 0",
+         _run(lambda e: e.study(lambda d: d["task"]["targets"][1].update(tolerance=-0.1)))),
+    Case("end-tolerance", STUDY, "`horizon.end_tolerance = 1.5`", r"horizon.end_tolerance = 1.5: expected a fraction in \[0, 1\)",
+         _run(lambda e: e.study(_set("horizon", "end_tolerance", 1.5)))),
+    Case("wrong-type", STUDY, '`task.intervals_per_cycle = "ten"`', r"task.intervals_per_cycle = 'ten': expected an integer >= 1",
+         _run(lambda e: e.study(_set("task", "intervals_per_cycle", "ten")))),
+    Case("wrong-type-table", STUDY, "`horizon = 3` (not a table)", r"horizon = 3: expected a table",
+         _run(lambda e: e.write("t.toml", re.sub(r"\[horizon\]\n(.+\n)+\n", "", to_toml(BASE)).replace("\n", "\nhorizon = 3\n", 1)))),
+    Case("unknown-key", STUDY, "`horizon.windw = 3` (a misspelt key)", r"unknown key horizon.windw",
+         _run(lambda e: e.study(_set("horizon", "windw", 3)))),
+    Case("unknown-table", STUDY, "a `[solvr]` table", r"unknown key 'solvr'",
+         _run(lambda e: e.study(extra="\n[solvr]\ntol = 1e-6\n"))),
+    Case("missing-key", STUDY, "no `task.cycle_duration`", r"missing key task.cycle_duration",
+         _run(lambda e: e.study(_delete("task", "cycle_duration")))),
+    Case("bad-name", STUDY, '`name = "a/b"`', r"name = 'a/b': expected a non-empty string without '/'",
+         _run(lambda e: e.study(_set("name", "a/b")))),
+    Case("unknown-joint", STUDY, 'a target on joint `"knee"`', r"task joint 'knee' is not in model 'arm26'",
+         _run(lambda e: e.study(lambda d: d["task"]["targets"][1].update(joint="knee")))),
+    Case("target-out-of-range", STUDY, "an elbow target at 4.0 rad", r"task target 4.0 of joint 'elbow' is outside its range",
+         _run(lambda e: e.study(lambda d: d["task"]["targets"][1].update(value=4.0)))),
+    Case("target-not-a-node", STUDY, "a target at phase 0.33 with 10 intervals", r"task phase at = 0.33 is not a node",
+         _run(lambda e: e.study(lambda d: d["task"]["targets"][1].update(at=0.33)))),
+    Case("q-init-out-of-bounds", STUDY, "`task.q_init = [0.07, -1.0]` (elbow below its range)",
+         r"q_init = \[0.07, -1.0\] is outside the range of joints \['elbow'\]",
+         _run(lambda e: e.study(_set("task", "q_init", [0.07, -1.0])))),
+    Case("q-init-wrong-length", STUDY, "`task.q_init = [0.07]`", r"task q_init has 1 entries; model 'arm26' has nq = 2",
+         _run(lambda e: e.study(_set("task", "q_init", [0.07])))),
+    Case("window-longer-than-run-file", STUDY, "a sliding window of 4 cycles with `max_cycles = 2`",
+         r"horizon.max_cycles = 2: expected at least the window",
+         _run(lambda e: e.study(_sliding(4, 2)))),
+    Case("unknown-fatigue-model", STUDY, '`fatigue.model = "hill"`', r"fatigue.model = 'hill': expected one of",
+         _run(lambda e: e.study(_set("fatigue", "model", "hill")))),
+    Case("unknown-cost", STUDY, "`costs.speed = 1.0`", r"costs.speed: cost kind 'speed' is unknown",
+         _run(lambda e: e.study(_set("costs", "speed", 1.0)))),
+    Case("fatigue-unknown-joint", STUDY, "`[fatigue.joints.knee]`", r"fatigue.joints.knee: joint 'knee' is not in model 'arm26'",
+         _run(lambda e: e.study(lambda d: d["fatigue"].update(joints={"knee": {"F": 0.1}})))),
+    # -- result files ------------------------------------------------------------------------------
+    Case("file-missing", FILES, "`replay` a file that does not exist", r"result file not found: '.*nope.h5'",
+         lambda e: ["replay", e.path("nope.h5"), "--html", e.path("r.html")]),
+    Case("file-not-hdf5", FILES, "`plot` a file that is not HDF5", r"lacks the HDF5 signature",
+         lambda e: ["plot", e.write("notes.h5", "my notes"), "--out", e.path("figures")]),
+    Case("file-truncated", FILES, "`replay` a truncated result file", r"'.*cut.h5' is not a readable HDF5 file: it is truncated or damaged",
+         lambda e: ["replay", e.result("cut.h5", truncate=True), "--html", e.path("r.html")]),
+    Case("file-newer-layout", FILES, "`plot` a file of a newer layout", r"newer fatigue_pin \(layout 3\); this version reads layouts up to 2",
+         lambda e: ["plot", e.result("new.h5", layout=3), "--out", e.path("figures")]),
+    Case("file-unknown-run", FILES, "`replay --run nope`", r"run 'nope' is not in '.*existing.h5'; it holds \['full/a', 'full/b'\]",
+         lambda e: ["replay", str(e.existing), "--run", "nope", "--html", e.path("r.html")]),
+    Case("file-several-runs", FILES, "`replay` a file of several runs without `--run`", r"holds 2 runs \['full/a', 'full/b'\]; choose one",
+         lambda e: ["replay", str(e.existing), "--html", e.path("r.html")]),
+    Case("rerun-without-study", FILES, "`rerun` a run built in Python (no stored study)", r"holds no run with a stored study",
+         lambda e: ["rerun", str(e.existing), "--out", str(e.existing)]),
+    # -- the Python API ----------------------------------------------------------------------------
+    Case("x-init-sum", API, "`Problem(..., x_init)` with ma + mr + mf = 1.5 on a half",
+         r"x_init of actuator half 'shoulder_plus': ma = 0.5, mr = 1, mf = 0; ma \+ mr \+ mf = 1.5, expected 1",
+         api=lambda e: _problem(fatigue=[0.5, 1.0, 0.0])),
+    Case("x-init-fraction", API, "`Problem(..., x_init)` with mf = -0.2", r"mf = -0.2; expected fractions in \[0, 1\]",
+         api=lambda e: _problem(fatigue=[0.2, 1.0, -0.2])),
+    Case("x-init-q-bounds", API, "`Problem(..., x_init)` with the elbow at -1 rad", r"x_init: q = \[0.07, -1.0\] is outside the bounds of joints \['elbow'\]",
+         api=lambda e: _problem(q=[0.07, -1.0])),
+    Case("x-init-size", API, "`Problem(..., x_init)` of the wrong size", r"x_init has 3 entries; expected nx = 16",
+         api=lambda e: _problem(size=3)),
+    Case("fatigue-params", API, "`XiaFatigue(F=-1, ...)`", r"XiaFatigue.F = -1.0: expected a finite rate >= 0",
+         api=lambda e: __import__("fatigue_pin.fatigue.models", fromlist=["x"]).XiaFatigue(LD=10, LR=10, F=-1, R=0.1)),
+    Case("task-duration", API, "`Task(cycle_duration=0, ...)`", r"Task.cycle_duration = 0: expected a duration in seconds > 0",
+         api=lambda e: __import__("fatigue_pin.ocp.task", fromlist=["x"]).Task(0, 10)),
+    Case("sliding-settings", API, "`SlidingSettings(window=3, advance=4)`", r"SlidingSettings.advance = 4: expected an integer in \[1, window = 3\]",
+         api=lambda e: __import__("fatigue_pin.drivers.sliding", fromlist=["x"]).SlidingSettings(window=3, advance=4)),
+    Case("read-unknown-run", API, "`read_run(path, 'nope')`", r"run 'nope' is not in",
+         api=lambda e: __import__("fatigue_pin.io.results", fromlist=["x"]).read_run(e.existing, "nope")),
+]
+
+
+def _problem(fatigue=None, q=None, size=None):
+    from fatigue_pin.paper.curl import curl_study
+
+    study = curl_study("full", intervals_per_cycle=10, substeps=2, solver={"compile": False})
+    problem = study.problem(_model())
+    x = problem.initial_state()
+    if size is not None:
+        x = x[:size]
+    if q is not None:
+        x[:2] = q
+    if fatigue is not None:
+        x[4:7] = fatigue
+    return problem.with_x_init(x)
+
+
+_MODEL: list = []
+
+
+def _model():
+    if not _MODEL:
+        from fatigue_pin.robot.model import load_model
+
+        _MODEL.append(load_model())
+    return _MODEL[0]
+
+
+# -- a full disk -------------------------------------------------------------------------------
+
+
+class _FullDisk:
+    """``Env.full_disk()``: a result file on a full tmpfs (or, where mounting is not allowed, on a
+    disk whose ``statvfs`` reports no free space)."""
+
+    def __init__(self, monkeypatch):
+        self.monkeypatch = monkeypatch
+        self.mounts: list[Path] = []
+
+    def __call__(self, env: Env) -> str:
+        disk = env.tmp / "disk"
+        disk.mkdir()
+        if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(disk)], capture_output=True).returncode == 0:
+            self.mounts.append(disk)
+            path = disk / "existing.h5"
+            write_run(path, make_run("full/a"))
+            import os
+
+            st = os.statvfs(disk)
+            with open(disk / "filler", "wb") as fh:
+                fh.write(b"\0" * max(st.f_bavail * st.f_frsize - 16384, 0))
+        else:
+            import os
+            from collections import namedtuple
+
+            path = disk / "existing.h5"
+            write_run(path, make_run("full/a"))
+            real = os.statvfs
+            Stat = namedtuple("Stat", "f_bavail f_frsize")
+            self.monkeypatch.setattr(os, "statvfs", lambda p: Stat(0, 4096) if str(p).startswith(str(disk)) else real(p))
+        env.watched.append(path)
+        return str(path)
+
+    def close(self) -> None:
+        for disk in self.mounts:
+            subprocess.run(["umount", "-l", str(disk)], check=False)
+
+
+@pytest.fixture
+def env(tmp_path, monkeypatch):
+    e = Env(tmp_path)
+    disk = _FullDisk(monkeypatch)
+    e.full_disk = lambda: disk(e)  # type: ignore[attr-defined]
+    yield e
+    disk.close()
+
+
+CLI_CASES = [c for c in CASES if c.argv is not None]
+API_CASES = [c for c in CASES if c.api is not None]
+
+
+def _snapshot(e: Env) -> dict[Path, bytes]:
+    return {p: p.read_bytes() for p in e.watched if p.exists()}
+
+
+@pytest.mark.parametrize("case", CLI_CASES, ids=[c.id for c in CLI_CASES])
+def test_cli_refuses_with_one_line(case, env, capsys):
+    argv = case.argv(env)
+    before = _snapshot(env)
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.endswith("\n") and err.count("\n") == 1, err  # exactly one line
+    assert err.startswith("fatigue-pin: error: ") and "Traceback" not in err
+    assert re.search(case.message, err), err
+    assert _snapshot(env) == before  # existing result files are byte-for-byte unchanged
+    assert not list(env.tmp.glob("**/*.h5.tmp"))
+
+
+@pytest.mark.parametrize("case", CLI_CASES[::4], ids=[c.id for c in CLI_CASES[::4]])
+def test_debug_shows_the_traceback(case, env):
+    with pytest.raises((FatiguePinError, OSError)) as err:
+        main(case.argv(env) + ["--debug"])
+    assert re.search(case.message, " ".join(str(err.value).split()))
+
+
+@pytest.mark.parametrize("case", API_CASES, ids=[c.id for c in API_CASES])
+def test_python_api_refuses(case, env):
+    with pytest.raises(FatiguePinError) as err:
+        case.api(env)
+    assert re.search(case.message, str(err.value)), str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_the_catalogue_has_every_case():
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "errors.md").read_text()
+    assert len(CASES) >= 30
+    missing = [c.id for c in CASES if f"`{c.id}`" not in doc]
+    assert not missing, f"docs/errors.md lacks {missing}"
+
+
+# -- the catalogue's table (python tests/test_errors.py) --------------------------------------------
+
+
+def _catalogue() -> str:
+    import io
+    import tempfile
+    from contextlib import redirect_stderr, redirect_stdout
+
+    class _MP:  # a minimal monkeypatch for the full-disk case outside pytest
+        def __init__(self):
+            self.undo_list = []
+
+        def setattr(self, obj, name, value):
+            self.undo_list.append((obj, name, getattr(obj, name)))
+            setattr(obj, name, value)
+
+        def undo(self):
+            for obj, name, value in reversed(self.undo_list):
+                setattr(obj, name, value)
+
+    lines = ["| group | case | input | message | exit code |", "|---|---|---|---|---|"]
+    for case in CASES:
+        with tempfile.TemporaryDirectory() as tmp:
+            mp = _MP()
+            e = Env(Path(tmp))
+            disk = _FullDisk(mp)
+            e.full_disk = lambda: disk(e)  # type: ignore[attr-defined]
+            try:
+                if case.argv is not None:
+                    err = io.StringIO()
+                    with redirect_stderr(err), redirect_stdout(io.StringIO()):
+                        code = main(case.argv(e))
+                    message = err.getvalue().strip()
+                    exit_code = str(code)
+                else:
+                    try:
+                        case.api(e)
+                        message, exit_code = "(no error)", "-"
+                    except FatiguePinError as exc:
+                        message, exit_code = f"{type(exc).__name__}: {exc}", "(exception)"
+            finally:
+                disk.close()
+                mp.undo()
+            message = message.replace(str(Path(tmp).resolve()), "TMP").replace(tmp, "TMP").replace("|", "\\|")
+        lines.append(f"| {case.group} | `{case.id}` | {case.what.replace('|', chr(92) + '|')} | `{message}` | {exit_code} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(_catalogue())

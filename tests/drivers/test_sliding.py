@@ -1,0 +1,189 @@
+"""Sliding-horizon runs: stitching, the window count rule, the file after every window, resume."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pytest
+
+from fatigue_pin.io.results import list_runs, read_run
+from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings, repetitions
+from fatigue_pin.io.study import Study
+
+
+@pytest.fixture(scope="module")
+def runner(small_problem, small_study):
+    return SlidingHorizon(small_problem, SlidingSettings(window=3, advance=1, max_cycles=5), small_study.transcription(),
+                          small_study.solver())
+
+
+@pytest.fixture(scope="module")
+def full_run(runner, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sliding") / "run.h5"
+    return runner.run(out), out
+
+
+def test_window_count_rule(full_run):
+    run, _ = full_run
+    assert run.windows.shape == (3,)  # 5 cycles kept with a 3-cycle window advancing 1
+    assert run.windows["converged"].all()
+    assert list(run.windows["first_cycle"]) == [0, 1, 2]
+    assert run.n_cycles == 5 == repetitions(3, SlidingSettings())
+    assert run.q.shape == (5 * 10 + 1, 2) and run.tau_plus.shape == (50, 2)
+    assert repetitions(19, SlidingSettings()) == 21
+    assert repetitions(4, SlidingSettings(window=4, advance=2)) == 10
+
+
+def test_stitched_trajectory_is_continuous(full_run, runner):
+    run, _ = full_run
+    ocp = runner.ocp
+    L = ocp.layout
+    x = L.assemble(run.q, run.qdot, run.fatigue)
+    u = np.hstack([run.tau_plus, run.tau_minus])
+    p = ocp.actuators.param_vector()
+    gaps = [np.max(np.abs(ocp.functions.step(x[k], u[k], p) - x[k + 1])) for k in range(u.shape[0])]
+    assert max(gaps) < 1e-6  # including across every window join
+    elbow = np.degrees(run.q[::5, 1])
+    assert np.allclose(elbow, np.tile([15, 150], 6)[:11], atol=1e-5)
+    mf = run.mf.max(axis=1)
+    assert mf[-1] > mf[10] > 0  # fatigue grows over the cycles
+
+
+def test_each_window_starts_from_the_previous_one(runner):
+    """The window's guess repeats the previous window's second cycle, with continuous fatigue."""
+    ocp = runner.ocp
+    x0 = ocp.initial_state()
+    sol = ocp.solve(x_init=x0, x_end=x0)
+    x_init = sol.x[10]
+    gx, gu = runner.window_guess(x_init, sol.x, sol.u)
+    assert np.allclose(gu[:10], sol.u[10:20]) and np.allclose(gu[20:30], sol.u[10:20])
+    assert np.allclose(gx[0], x_init)
+    p = ocp.actuators.param_vector()
+    L = ocp.layout
+    for k in range(30):
+        assert np.allclose(ocp.functions.step(gx[k], gu[k], p)[L.m], gx[k + 1][L.m], atol=1e-12)
+
+
+def test_file_written_after_every_window_and_resume_equals_uninterrupted(full_run, runner, tmp_path):
+    reference, _ = full_run
+    out = tmp_path / "resumed.h5"
+    first = runner.run(out, stop_after=1)  # as if the run had been stopped after one window
+    assert read_run(out, first.name).windows.shape == (1,)
+    resumed = runner.run(out, resume=True)
+    assert resumed.windows.shape == reference.windows.shape
+    for name in ("q", "qdot", "tau_plus", "tau_minus", "ma", "mr", "mf", "cycle_costs"):
+        assert np.allclose(getattr(resumed, name), getattr(reference, name), atol=1e-9), name
+
+
+KILL_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    from fatigue_pin.paper.curl import curl_study
+    from fatigue_pin.io.study import run_study
+    study = curl_study("sliding", max_cycles=int(sys.argv[2]), intervals_per_cycle=10, substeps=2, solver={"compile": False})
+    run_study(study, sys.argv[1], name="sliding/run", resume=True, progress=lambda line: print(line, flush=True))
+    """
+)
+
+
+def test_killed_run_keeps_finished_windows_and_resumes(full_run, tmp_path):
+    """SIGKILL a run after its first window; the file stays readable and a resumed run ends
+    with the uninterrupted result."""
+    reference, _ = full_run
+    out = tmp_path / "killed.h5"
+    script = tmp_path / "run.py"
+    script.write_text(KILL_SCRIPT)
+    proc = subprocess.Popen([sys.executable, str(script), str(out), "8"], stdout=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:  # wait for the first finished window
+            if line.startswith("window   0"):
+                break
+        deadline = time.time() + 60
+        while not out.exists() and time.time() < deadline:
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=60)
+    name = list_runs(out)[0]
+    partial = read_run(out, name)
+    assert 1 <= partial.windows.shape[0] < 6
+    subprocess.run([sys.executable, str(script), str(out), "5"], check=True, capture_output=True)
+    resumed = read_run(out, name)
+    assert np.allclose(resumed.q, reference.q, atol=1e-9) and np.allclose(resumed.mf, reference.mf, atol=1e-9)
+
+
+def test_resume_refuses_other_settings(full_run, small_study, arm26):
+    from conftest import small_curl
+    from fatigue_pin.io.results import ResultFileError
+
+    _, out = full_run
+    other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(max_cycles=5), small_study.transcription(),
+                           small_study.solver())
+    with pytest.raises(ResultFileError, match="weights"):
+        other.run(out, name=read_run(out).name, resume=True)
+
+
+def test_bad_sliding_settings():
+    from fatigue_pin.core.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="advance"):
+        SlidingSettings(window=3, advance=4)
+    with pytest.raises(ParameterError, match="max_cycles"):
+        SlidingSettings(window=3, max_cycles=2)
+
+
+def test_a_failed_window_is_kept_for_inspection(small_problem, small_study, tmp_path):
+    """A window that fails (here: 3 iterations allowed) ends the run, and IPOPT's last iterate of
+    it is stored as the run ``<name>_failed_window``, which file listings and default reads skip."""
+    import dataclasses
+
+    from fatigue_pin.drivers.sliding import failed_window_name
+
+    solver = dataclasses.replace(small_study.solver(), max_iter=3)
+    out = tmp_path / "failed.h5"
+    run = SlidingHorizon(small_problem, SlidingSettings(window=3, advance=1, max_cycles=5), small_study.transcription(),
+                         solver).run(out, name="sliding/s")
+    assert run.n_cycles == 0 and not run.windows["converged"].any()
+    assert list_runs(out) == ["sliding/s"] and read_run(out).name == "sliding/s"
+    assert list_runs(out, failed_windows=True) == ["sliding/s", failed_window_name("sliding/s")]
+    failed = read_run(out, failed_window_name("sliding/s"))
+    assert failed.n_cycles == 3 and not failed.converged and failed.attrs["iterations"] == 3
+    assert failed.attrs["kind"] in ("not-converged", "infeasible-growing")
+    np.testing.assert_allclose(failed.q[0], small_problem.initial_state()[:2])  # the window starts at the fixed state
+
+
+def test_resume_refuses_another_payload(small_study):
+    """The fingerprint of a sliding run names the model's payload: a run with 6.4 kg more in the
+    hand cannot resume one without it."""
+    plain = small_study.replace({"horizon.kind": "sliding"})
+    heavy = Study.from_dict({**plain.data, "model": {**plain.data["model"], "payload": {"frame": "dumbbell", "mass": 6.4}}})
+    fingerprints = [SlidingHorizon(s.problem(), SlidingSettings(window=3), s.transcription(), s.solver()).fingerprint()
+                    for s in (plain, heavy)]
+    assert fingerprints[0] != fingerprints[1]
+
+
+def test_copied_fatigue_guess_jumps_back_at_cycle_boundaries(small_problem, small_study):
+    """guess_fatigue='copy' (the authors' window guess) repeats the previous window's 2nd cycle
+    states verbatim, fatigue included; 'integrate' rolls the fatigue states forward instead."""
+    settings = {g: SlidingHorizon(small_problem, SlidingSettings(window=3, guess_fatigue=g), small_study.transcription(),
+                                  small_study.solver()) for g in ("integrate", "copy")}
+    ocp = settings["copy"].ocp
+    n = ocp.task.intervals_per_cycle
+    sol = ocp.solve()
+    x0 = sol.x[n]
+    guesses = {g: r.window_guess(x0, sol.x, sol.u) for g, r in settings.items()}
+    L = ocp.layout
+    fat = slice(L.nq + L.nv, L.nx)
+    copied, integrated = guesses["copy"][0], guesses["integrate"][0]
+    np.testing.assert_array_equal(copied[n, fat], copied[0, fat])  # back to the cycle's start
+    np.testing.assert_array_equal(copied[:n, fat], sol.x[n:2 * n, fat])
+    assert not np.allclose(integrated[n:, fat], copied[n:, fat])  # rolled forward, no jump back
+    np.testing.assert_array_equal(guesses["copy"][1], guesses["integrate"][1])
+    with pytest.raises(Exception, match="guess_fatigue"):
+        SlidingSettings(guess_fatigue="verbatim")

@@ -1,0 +1,82 @@
+"""HDF5 result files: round trip, atomic writes, clear errors."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import make_run
+from fatigue_pin.io.results import (
+    ResultFileError,
+    RunResult,
+    list_runs,
+    read_run,
+    read_search,
+    torque_limits_at_cycle_ends,
+    write_run,
+    write_search,
+)
+
+
+def test_round_trip(tmp_path):
+    run = make_run()
+    write_run(tmp_path / "a.h5", run)
+    back = read_run(tmp_path / "a.h5")
+    for name in ("t", "q", "qdot", "tau_plus", "tau_minus", "ma", "mr", "mf", "cycle_costs", "torque_limits"):
+        assert np.array_equal(getattr(back, name), getattr(run, name)), name
+    assert back.actuator_names == run.actuator_names and back.joint_names == run.joint_names
+    assert back.attrs["cost"] == "torque" and back.urdf == run.urdf
+    assert back.torque_limits.shape == (2, 4) and np.allclose(back.torque_limits[:, 1], -50 * (1 - run.mf[[10, 20], 1]))
+
+
+def test_several_runs_and_replacing_one(tmp_path):
+    path = tmp_path / "b.h5"
+    write_run(path, make_run("full/torque_S10"))
+    write_run(path, make_run("sliding/torque_S10", cycles=3))
+    write_run(path, make_run("full/torque_S10", cycles=4))
+    assert list_runs(path) == ["full/torque_S10", "sliding/torque_S10"]
+    assert read_run(path, "full/torque_S10").n_cycles == 4
+    assert read_run(path, "sliding/torque_S10").n_cycles == 3
+
+
+def test_crash_during_write_leaves_the_old_file(tmp_path, monkeypatch):
+    import fatigue_pin.io.results as results
+
+    path = tmp_path / "c.h5"
+    write_run(path, make_run())
+
+    def boom(group, run):
+        group.create_dataset("t", data=[1.0])
+        raise RuntimeError("killed")
+
+    monkeypatch.setattr(results, "_write_run", boom)
+    with pytest.raises(RuntimeError):
+        write_run(path, make_run("full/other"))
+    monkeypatch.undo()
+    assert list_runs(path) == ["full/torque_S10"]
+    assert not (tmp_path / "c.h5.tmp").exists()
+    with h5py.File(path, "r") as h5:
+        assert "full/torque_S10/q" in h5
+
+
+def test_search_table(tmp_path):
+    path = tmp_path / "s.h5"
+    rows = [{"n_cycles": 1, "converged": True, "status": "Solve_Succeeded", "iterations": 12, "wall_time_s": 0.5}]
+    write_search(path, "torque_S10", rows, {"max_cycles": 1})
+    table = read_search(path)["torque_S10"]
+    assert table["n_cycles"][0] == 1 and table["converged"][0]
+
+
+def test_clear_errors(tmp_path):
+    with pytest.raises(ResultFileError, match="not found"):
+        read_run(tmp_path / "missing.h5")
+    (tmp_path / "junk.h5").write_text("not hdf5")
+    with pytest.raises(ResultFileError, match="not a readable HDF5"):
+        read_run(tmp_path / "junk.h5")
+    write_run(tmp_path / "d.h5", make_run("a"))
+    write_run(tmp_path / "d.h5", make_run("b"))
+    with pytest.raises(ResultFileError, match="holds 2 runs"):
+        read_run(tmp_path / "d.h5")
+    with pytest.raises(ResultFileError, match="'c' is not in"):
+        read_run(tmp_path / "d.h5", "c")

@@ -1,0 +1,155 @@
+"""Study files: the format of docs/studies.md, clear errors, round trips, rerun from a result."""
+
+from __future__ import annotations
+
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+from conftest import small_curl
+from fatigue_pin.cli.main import main
+from fatigue_pin.io.results import read_run
+from fatigue_pin.io.study import Study, StudyError
+
+#: The example of the issue that introduced study files, verbatim.
+EXAMPLE = textwrap.dedent(
+    """
+    [model]
+    urdf = "arm26"                      # a bundled model, an example-robot-data name, or a path
+    [fatigue]                           # every actuator half, unless overridden per joint
+    model = "xia"                       # 3CC; S > 0 gives 3CC-S, r != 1 gives 3CC-r
+    LD = 10.0
+    LR = 10.0
+    F = 0.456
+    R = 0.0094
+    S = 10.0
+    [fatigue.joints.elbow]              # optional per-joint overrides (both halves)
+    F = 0.3
+    [task]
+    cycle_duration = 1.0
+    intervals_per_cycle = 50
+    q_init = [0.07, 0.2618]             # optional
+    [[task.targets]]
+    joint = "elbow"
+    value = 0.2618                      # rad
+    at = 0.0                            # phase of the cycle in [0, 1); repeated every cycle
+    [[task.targets]]
+    joint = "elbow"
+    value = 2.618
+    at = 0.5
+    [costs]                             # name = weight, or a table with options
+    posture = { weight = 1e4, joints = ["shoulder"] }
+    torque_rate = 0.1
+    fatigue = 1e3
+    torque = 1.0
+    [horizon]
+    kind = "sliding"                    # "full", "sliding" or "max-cycles"
+    cycles = 3                          # full: the horizon; sliding: the window
+    advance = 1                         # sliding only
+    max_cycles = 30                     # sliding: stop after; max-cycles: search bound
+    [solver]
+    linear_solver = "mumps"
+    """
+)
+
+
+def test_the_documented_example_builds_its_problem(arm26):
+    study = Study.from_toml(EXAMPLE)
+    problem = study.problem(arm26)
+    assert problem.cost_names == ("posture", "torque_rate", "fatigue", "torque")
+    assert list(problem.weights) == [1e4, 0.1, 1e3, 1.0]
+    params = {h.name: h.params for h in problem.actuators.halves}
+    assert params["elbow_plus"].F == params["elbow_minus"].F == 0.3
+    assert params["shoulder_plus"].F == 0.456 and params["shoulder_minus"].R == 0.0094
+    assert params["elbow_plus"].S == 10.0
+    task = problem.task
+    assert task.intervals_per_cycle == 50 and [t.value for t in task.joint_targets] == [0.2618, 2.618]
+    assert np.allclose(problem.initial_state()[:2], [0.07, 0.2618])
+    assert study.horizon["kind"] == "sliding" and study.horizon["max_cycles"] == 30
+
+
+def test_round_trip_through_toml_keeps_every_value():
+    study = Study.from_toml(EXAMPLE)
+    again = Study.from_toml(study.to_toml())
+    assert again.data == study.data
+
+
+def test_per_half_overrides_and_name_placeholders(arm26):
+    study = Study.from_toml(EXAMPLE.replace("F = 0.3", "F = 0.3\nminus = { F = 0.2 }"))
+    params = {h.name: h.params for h in study.problem(arm26).actuators.halves}
+    assert params["elbow_plus"].F == 0.3 and params["elbow_minus"].F == 0.2
+    named = study.replace({"name": "curl_S{fatigue.S}_F{fatigue.F}"})
+    assert named.name == "curl_S10_F0.456" and named.run_name() == "sliding/curl_S10_F0.456"
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (("[solver]", "[solver]\nspeed = 3"), "unknown key solver.speed"),
+        (("[horizon]", "[horizon]\nwindow = 3"), "unknown key horizon.window"),
+        (("cycle_duration = 1.0", 'cycle_duration = "1 s"'), "task.cycle_duration = '1 s': expected a duration"),
+        (("intervals_per_cycle = 50", "intervals_per_cycle = 50.5"), "task.intervals_per_cycle = 50.5"),
+        (("cycle_duration = 1.0\n", ""), "missing key task.cycle_duration"),
+        (('kind = "sliding" ', 'kind = "circular" '), "horizon.kind = 'circular'"),
+        (("torque = 1.0", "torque = -1.0"), "costs.torque.weight = -1.0"),
+        (("torque = 1.0", "speed = 1.0"), "cost kind 'speed' is unknown"),
+        (('model = "xia" ', 'model = "hill" '), "fatigue.model = 'hill'"),
+        (("LD = 10.0", "LD = 10.0\nQ = 1.0"), "unknown key fatigue.Q"),
+        (("F = 0.456", "F = nan"), "fatigue.F = nan"),
+        (("[fatigue.joints.elbow]", "[fatigue.joints.wrist]"), "joint 'wrist' is not in model"),
+        (('joint = "elbow"\nvalue = 2.618', 'joint = "knee"\nvalue = 2.618'), "task joint 'knee' is not in model"),
+        (("value = 2.618", "value = 4.0"), "outside its range"),
+        (("at = 0.5", "at = 1.5"), "at = 1.5: expected a phase"),
+        (("advance = 1 ", "advance = 4 "), "horizon.advance = 4"),
+        (("max_cycles = 30", "max_cycles = 2"), "horizon.max_cycles = 2"),
+        (("R = 0.0094", "R = -0.0094"), "R = -0.0094: expected a finite rate"),
+    ],
+)
+def test_bad_study_files_name_the_key(arm26, change, message):
+    old, new = change
+    assert old in EXAMPLE
+    with pytest.raises(Exception) as info:
+        Study.from_toml(EXAMPLE.replace(old, new, 1)).problem(arm26)
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_not_toml_is_a_clear_error(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[model\nurdf = 1")
+    with pytest.raises(StudyError, match="is not valid TOML"):
+        Study.from_file(path)
+    with pytest.raises(StudyError, match="not found"):
+        Study.from_file(tmp_path / "missing.toml")
+
+
+def test_run_stores_its_study_and_rerun_reproduces_it(tmp_path, capsys):
+    """`fatigue-pin run` stores the study in the run; `fatigue-pin rerun` rebuilds it from the
+    file alone and solves it again: same iterations, same objective."""
+    study = small_curl("full", cycles=2)
+    path = tmp_path / "curl.toml"
+    path.write_text(study.to_toml())
+    out = tmp_path / "first.h5"
+    assert main(["run", str(path), "--out", str(out)]) == 0
+    first = read_run(out)
+    assert Study.from_toml(first.study).data == study.data
+    again = tmp_path / "again.h5"
+    assert main(["rerun", str(out), "--out", str(again)]) == 0
+    second = read_run(again)
+    assert second.attrs["iterations"] == first.attrs["iterations"]
+    assert second.attrs["objective"] == pytest.approx(first.attrs["objective"], rel=1e-8)
+    assert Study.from_file(again).data == study.data
+    assert "converged" in capsys.readouterr().out
+
+
+def test_set_changes_a_key_of_the_study(tmp_path):
+    path = tmp_path / "curl.toml"
+    path.write_text(small_curl("full").to_toml())
+    out = tmp_path / "r.h5"
+    assert main(["run", str(path), "--out", str(out), "--set", "fatigue.S=0", "--set", "costs.torque.weight=0"]) == 0
+    run = read_run(out, "full/fatigue-torque_S0")
+    stored = Study.from_toml(run.study)
+    assert stored.data["fatigue"]["S"] == 0 and stored.data["costs"]["torque"]["weight"] == 0
+    assert run.attrs["S"] == 0.0 and math.isfinite(run.attrs["objective"])

@@ -1,0 +1,72 @@
+"""Solver plumbing: compile flags, modes and generated code."""
+
+from __future__ import annotations
+
+import pytest
+
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.ocp.solver import SolverOptions, _host_key
+
+
+def test_cache_key_names_the_cpu_only_for_native_code():
+    assert _host_key(SolverOptions(compiler_flags=("-O1",))) == b""
+    assert _host_key(SolverOptions(compiler_flags=("-O3", "-march=native"))) != b""
+
+
+def test_barrier_and_regularisation_defaults_reach_ipopt_and_can_be_overridden():
+    ipopt = SolverOptions().ipopt_options()["ipopt"]
+    assert ipopt["mu_init"] == 1.0 and ipopt["perturb_dec_fact"] == 0.6
+    ipopt = SolverOptions(mu_init=0.1, ipopt={"perturb_dec_fact": 1 / 3}).ipopt_options()["ipopt"]
+    assert ipopt["mu_init"] == 0.1 and ipopt["perturb_dec_fact"] == 1 / 3
+
+
+def test_bad_barrier_settings_are_named():
+    with pytest.raises(ParameterError, match="mu_init = -1"):
+        SolverOptions(mu_init=-1)
+    with pytest.raises(ParameterError, match="perturb_dec_fact = 1.5"):
+        SolverOptions(perturb_dec_fact=1.5)
+
+
+def test_generated_nlp_source_needs_no_change_of_directory(tmp_path):
+    """The C written into a folder is what CasADi's generate_dependencies writes into the
+    working directory, and the working directory is left alone."""
+    import os
+
+    import casadi as ca
+
+    from fatigue_pin.ocp.solver import generate_nlp_source
+
+    x, p = ca.SX.sym("x", 2), ca.SX.sym("p")
+    nlp = ca.nlpsol("s", "ipopt", {"x": x, "p": p, "f": (x[0] - p) ** 2 + x[1] ** 2, "g": x[0] * x[1]},
+                    {"print_time": False, "ipopt": {"print_level": 0}})
+    cwd = os.getcwd()
+    path = generate_nlp_source(nlp, "nlp_a", tmp_path)
+    assert os.getcwd() == cwd and path == tmp_path / "nlp_a.c"
+    reference = tmp_path / "ref"
+    reference.mkdir()
+    os.chdir(reference)
+    try:
+        nlp.generate_dependencies("nlp_a.c")
+    finally:
+        os.chdir(cwd)
+    assert path.read_bytes() == (reference / "nlp_a.c").read_bytes()
+
+
+def test_compile_mode_is_validated_and_the_compiler_checked_only_when_compiling(tmp_path):
+    with pytest.raises(ParameterError, match="compile_mode = 'fast'"):
+        SolverOptions(compile_mode="fast")
+    options = SolverOptions(compiler="no-such-cc")  # exists without a compiler on PATH
+    assert options.library_mode and options.build_options().compiler == "no-such-cc"
+
+
+def test_acceptable_level_counts_only_when_asked():
+    import types
+
+    from fatigue_pin.ocp.solver import NlpSolver, SolverOptions
+
+    strict = types.SimpleNamespace(options=SolverOptions())
+    lenient = types.SimpleNamespace(options=SolverOptions(accept_acceptable=True))
+    assert NlpSolver.converged(strict, "Solve_Succeeded") and NlpSolver.converged(lenient, "Solve_Succeeded")
+    assert not NlpSolver.converged(strict, "Solved_To_Acceptable_Level")
+    assert NlpSolver.converged(lenient, "Solved_To_Acceptable_Level")
+    assert not NlpSolver.converged(lenient, "Maximum_Iterations_Exceeded")

@@ -1,0 +1,64 @@
+"""The paper's study as data: the shipped study files, and parity with the formulation of
+fatigue_pin 0.1 (main at 034cfcc, before problems became data)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from conftest import small_curl
+from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.paper.curl import COSTS, PRESETS, authors_variant_dict, curl_study
+from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
+from fatigue_pin.io.study import Study
+
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
+
+
+@pytest.mark.parametrize("preset", list(PRESETS))
+@pytest.mark.parametrize("cost", list(COSTS))
+@pytest.mark.parametrize("kind, horizon", [("sliding", "sliding"), ("full", "max-cycles")])
+def test_shipped_study_files_are_the_paper_configurations(preset, cost, kind, horizon):
+    shipped = Study.from_file(STUDIES / f"curl_{kind}_{cost}_{preset}.toml")
+    expected = curl_study(horizon, cost, preset, 10.0)  # the search has no cap
+    assert shipped.data == expected.data
+    assert shipped.run_name() == f"{kind}/{cost}_S10"
+    assert shipped.replace({"fatigue.S": 0.0}).run_name() == f"{kind}/{cost}_S0"
+
+
+def test_shipped_authors_variant_is_the_paper_modules():
+    shipped = Study.from_file(STUDIES / "curl_full_authors-variant.toml")
+    assert shipped.data == Study.from_dict(authors_variant_dict()).data
+    solver, tr = shipped.solver(), shipped.transcription()
+    assert solver.accept_acceptable and solver.mu_init == 0.1 and abs(solver.perturb_dec_fact - 1 / 3) < 1e-15
+    assert not tr.scaling and tr.target_rows and not tr.torque_variable and shipped.horizon["cyclic_end"] and shipped.horizon["guess"] == "rest"
+    assert shipped.run_name() == "full/authors-variant_fatigue-torque_S10"
+
+
+# Reference values computed with fatigue_pin 0.1 (FatigueOcp, OcpSettings) on the same small
+# problems: 10 intervals per cycle, 2 RK4 substeps, uncompiled.
+REFERENCE_FULL = [
+    (dict(cost="fatigue-torque"), 2, 25, 803.9509507670801),
+    (dict(cost="torque", preset="authors-code", S=0.0), 1, 17, 261.88129433591996),
+    (dict(cost="fatigue", S=10.0), 3, 23, 232.22166320401965),
+]
+REFERENCE_SLIDING = ([21, 16, 21], [244.9352114740196, 403.22205952688563, 712.3289125587902])
+
+
+@pytest.mark.parametrize("options, cycles, iterations, objective", REFERENCE_FULL)
+def test_full_horizon_parity_with_the_previous_formulation(arm26, options, cycles, iterations, objective):
+    study = small_curl(**options)
+    sol = OcpBuilder(study.problem(arm26), study.transcription(), study.solver())(cycles).solve()
+    assert sol.success
+    assert sol.iterations == iterations
+    assert sol.objective == pytest.approx(objective, rel=1e-8)
+
+
+def test_sliding_horizon_parity_with_the_previous_formulation(arm26):
+    study = small_curl("sliding", cost="fatigue")
+    run = SlidingHorizon(study.problem(arm26), SlidingSettings(max_cycles=5), study.transcription(), study.solver()).run()
+    iterations, objectives = REFERENCE_SLIDING
+    assert list(run.windows["iterations"]) == iterations
+    assert list(run.windows["objective"]) == pytest.approx(objectives, rel=1e-8)
+    assert run.attrs["repetitions"] == 5

@@ -1,0 +1,100 @@
+"""Model loading: the bundled arm26, its numbers, other URDFs and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fatigue_pin.core.errors import DimensionError, ModelError
+from fatigue_pin.robot.model import bundled_urdf, load_model
+
+
+@pytest.mark.parametrize(
+    "q_elbow_deg, expected",
+    [(15.0, (5.74, 4.04)), (90.0, (14.24, 12.64)), (150.0, (7.21, 5.63))],
+)
+def test_arm26_holding_torques_match_spec(arm26, q_elbow_deg, expected):
+    g = arm26.gravity_torque([0.07, math.radians(q_elbow_deg)])
+    assert np.allclose(g, expected, atol=0.01)
+
+
+def test_arm26_bounds_and_names(arm26):
+    assert arm26.joint_names == ("shoulder", "elbow")
+    assert np.allclose(arm26.q_lower, [-1.0, 0.0]) and np.allclose(arm26.q_upper, [math.pi, math.pi])
+    assert np.allclose(arm26.v_upper, 10 * math.pi) and np.allclose(arm26.v_lower, -10 * math.pi)
+    assert np.allclose(arm26.tau_upper, 50.0) and np.allclose(arm26.tau_lower, -50.0)
+    masses = arm26.body_masses()
+    assert masses["shoulder"] == pytest.approx(1.864572)
+    assert masses["elbow"] == pytest.approx(1.534315 + 3.6)
+
+
+def test_arm26_shoulder_to_elbow_distance(arm26):
+    import pinocchio as pin
+
+    data = arm26.pin_model.createData()
+    pin.forwardKinematics(arm26.pin_model, data, np.zeros(2))
+    d = np.linalg.norm(data.oMi[2].translation - data.oMi[1].translation)
+    assert d == pytest.approx(0.29072, abs=1e-5)
+
+
+def test_gravity_pulls_down_along_world_z(arm26):
+    # arm hanging (q = 0): the dumbbell sits below the shoulder in the z-up world
+    import pinocchio as pin
+
+    data = arm26.pin_model.createData()
+    pin.forwardKinematics(arm26.pin_model, data, np.zeros(2))
+    pin.updateFramePlacements(arm26.pin_model, data)
+    dumbbell = data.oMf[arm26.pin_model.getFrameId("dumbbell")].translation
+    assert dumbbell[2] < data.oMi[1].translation[2] - 0.5
+    assert np.allclose(arm26.pin_model.gravity.linear, [0, 0, -9.81])
+
+
+def test_summary_mentions_holding_torques(arm26):
+    text = arm26.summary()
+    assert "shoulder" in text and "elbow" in text and "5.7" in text and "4.0" in text
+
+
+def test_missing_urdf(tmp_path):
+    with pytest.raises(ModelError, match="not found"):
+        load_model(tmp_path / "nope.urdf")
+
+
+def test_urdf_that_does_not_parse(tmp_path):
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'></robot")
+    with pytest.raises(ModelError, match="does not parse"):
+        load_model(bad)
+
+
+def _urdf_with_joint(tmp_path, joint_type: str):
+    text = bundled_urdf().read_text().replace('<joint name="elbow" type="revolute">', f'<joint name="elbow" type="{joint_type}">')
+    path = tmp_path / f"arm_{joint_type}.urdf"
+    path.write_text(text)
+    return path
+
+
+def test_unsupported_joint_named(tmp_path):
+    with pytest.raises(ModelError, match="elbow.*unsupported"):
+        load_model(_urdf_with_joint(tmp_path, "continuous"))
+
+
+def test_floating_base_rejected(tmp_path):
+    text = bundled_urdf().read_text().replace('<joint name="world_to_thorax" type="fixed">', '<joint name="world_to_thorax" type="floating">')
+    path = tmp_path / "floating.urdf"
+    path.write_text(text)
+    with pytest.raises(ModelError, match="floating"):
+        load_model(path)
+
+
+def test_wrong_state_size(arm26):
+    with pytest.raises(DimensionError, match="q has 3 entries"):
+        arm26.gravity_torque([0.0, 0.1, 0.2])
+    with pytest.raises(DimensionError, match="tau has 1 entries"):
+        arm26.forward_dynamics([0.0, 0.1], [0.0, 0.0], [1.0])
+
+
+def test_unknown_joint_index(arm26):
+    with pytest.raises(ModelError, match="wrist"):
+        arm26.joint_index("wrist")

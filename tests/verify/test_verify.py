@@ -1,0 +1,248 @@
+"""``fatigue-pin verify``: an independent check of stored results (solve_ivp + numeric pinocchio.aba).
+
+The reference integration only means something when the transcription's own RK4 error is below
+the gap tolerance, so the results verified here use the small curl's 10 intervals per cycle with
+8 substeps (sliding) and the paper's grid, 50 intervals and 5 substeps (one full cycle); the
+conftest's 2 substeps are too coarse for the default tolerances, which verify says
+(``test_coarse_grid_fails_and_says_why``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fatigue_pin.cli.main import main
+from fatigue_pin.fatigue.models import MichaudFatigue, XiaFatigue
+from fatigue_pin.paper.curl import curl_study
+from fatigue_pin.paper.reproduce import _verify_rows
+from fatigue_pin.io.results import read_run, write_run
+from fatigue_pin.io.study import Study, run_study
+from fatigue_pin.ocp.transcription import IntervalFunctions, Transcription
+from fatigue_pin.verify.check import VerifyTolerances, numpy_rhs, verify_run
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from conftest import small_curl  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def full_file(tmp_path_factory):
+    """One full-horizon cycle on the paper's grid (50 intervals, 5 substeps)."""
+    out = tmp_path_factory.mktemp("verify") / "full.h5"
+    study = curl_study("full", cycles=1, intervals_per_cycle=50, substeps=5, solver={"compile": False})
+    run = run_study(study, out)
+    assert run.converged
+    return out, run.name
+
+
+@pytest.fixture(scope="module")
+def sliding_file(tmp_path_factory):
+    """Sliding horizon, windows of 2 cycles advancing 1, 3 cycles kept: 2 windows, one join."""
+    out = tmp_path_factory.mktemp("verify") / "sliding.h5"
+    study = curl_study("sliding", cycles=2, max_cycles=3, intervals_per_cycle=10, substeps=8, solver={"compile": False})
+    run = run_study(study, out)
+    assert run.windows.shape == (2,) and run.windows["converged"].all()
+    return out, run.name
+
+
+@pytest.fixture(scope="module")
+def full_report(full_file):
+    path, name = full_file
+    return verify_run(read_run(path, name), single_shooting=True)
+
+
+def _with(run, **changes):
+    return dataclasses.replace(run, **changes)
+
+
+def test_full_result_passes(full_file, full_report, capsys):
+    r = full_report
+    assert r.passed, r.table()
+    assert r.gap < 1e-3 and r.gap_fatigue < 1e-7
+    assert r.task == 0.0 and r.coupling < 1e-6 and r.bound < 1e-6
+    assert r.rk4_residual < 1e-6  # the nodes solve their own discretisation (IPOPT's tolerance)
+    assert "PASSED" in r.table()
+    path, name = full_file
+    assert main(["verify", str(path)]) == 0
+    assert "PASSED" in capsys.readouterr().out
+
+
+def test_sliding_result_passes_joins_included(sliding_file, capsys):
+    path, name = sliding_file
+    run = read_run(path, name)
+    r = verify_run(run)
+    assert r.passed, r.table()
+    assert r.n_intervals == 30  # the stitched trajectory, across the join at node 10
+    assert r.gap < 1e-3 and r.gap_fatigue < 1e-5
+    assert any("cyclic end condition is not checked" in note for note in r.notes)
+    assert main(["verify", str(path), name]) == 0
+    assert "cyclic end condition is not checked" in capsys.readouterr().out
+
+
+def test_changed_node_fails_with_the_gap_named(full_file, tmp_path, capsys):
+    path, name = full_file
+    run = read_run(path, name)
+    q = run.q.copy()
+    q[12, 1] += 0.01  # elbow, between the targets (nodes 0, 25, 50)
+    bad = tmp_path / "bad.h5"
+    write_run(bad, _with(run, q=q))
+    assert main(["verify", str(bad)]) == 1
+    out = capsys.readouterr().out
+    failed = next(line for line in out.splitlines() if "FAILED" in line)
+    assert "gap q" in failed and ("interval 11, elbow" in failed or "interval 12, elbow" in failed)
+    r = verify_run(read_run(bad, name))
+    assert 0.009 < r.gap_q < 0.011 and r.task == 0.0
+
+
+def test_known_answer_reintegration_matches_the_nodes_at_fourth_order(full_file, full_report):
+    """The package's RK4 (CasADi Pinocchio ABA) and the reference (DOP853, numeric pin.aba)
+    agree: trajectories rolled out from the stored controls with the package's RK4 have gaps
+    that shrink like h^4 as the substeps double (s steps of h = dt / s over an interval: error
+    s * O(h^5) = O(dt h^4), a factor 16; measured 17 to 20)."""
+    path, name = full_file
+    run = read_run(path, name)
+    study = Study.from_toml(run.study)
+    problem = study.problem()
+    L = problem.layout
+    u = np.hstack([run.tau_plus, run.tau_minus])
+    p = problem.actuators.param_vector()
+    gaps = []
+    for substeps in (2, 4, 8):
+        fn = IntervalFunctions(problem, Transcription(substeps=substeps))
+        x = np.zeros((u.shape[0] + 1, L.nx))
+        x[0] = L.assemble(run.q[:1], run.qdot[:1], {k: v[:1] for k, v in run.fatigue.items()})[0]
+        for k in range(u.shape[0]):
+            x[k + 1] = fn.step(x[k], u[k], p)
+        rolled = _with(run, q=x[:, L.q], qdot=x[:, L.v], fatigue={s: L.fatigue_columns(x, s) for s in L.state_kinds},
+                       attrs={**run.attrs, "substeps": substeps})
+        r = verify_run(rolled)
+        assert r.rk4_residual < 1e-12  # the numpy RK4 of verify is the package's RK4
+        gaps.append(r.gap_qdot)
+    assert 12 < gaps[0] / gaps[1] < 30 and 12 < gaps[1] / gaps[2] < 30, gaps
+    assert gaps[2] < 1e-5
+    # and the stored (optimal) nodes themselves: within the paper grid's RK4 error of the flow
+    assert full_report.gap_q < 1e-5 and full_report.gap_qdot < 3e-4
+
+
+def test_single_shooting_drift_is_small_for_a_converged_solution(full_report):
+    r = full_report
+    assert r.drift_q < 1e-5 and r.drift_qdot < 3e-4 and r.drift_fatigue < 1e-7 and r.drift_invariant < 1e-8
+    table = r.table()
+    assert "single shooting: drift q" in table and "single shooting: invariant drift" in table
+
+
+def test_a_diverging_single_shooting_is_reported_not_raised(full_file, monkeypatch):
+    """When the open-loop integration of the rigid body fails (a long swinging horizon), verify
+    reports an infinite drift with a note and still integrates the fatigue states to the end."""
+    import fatigue_pin.verify.check as verify
+
+    path, name = full_file
+    real = verify._integrate
+    calls = {"rigid": 0}
+
+    def failing(f, y0, dt, rtol, atol, method="DOP853"):
+        if y0.size == 4:  # the rigid body (q, qdot of 2 joints): 50 gap checks, then single shooting
+            calls["rigid"] += 1
+            if calls["rigid"] > 50 + 10:
+                raise verify.ResultFileError("the reference integration failed: step size too small")
+        return real(f, y0, dt, rtol, atol, method)
+
+    monkeypatch.setattr(verify, "_integrate", failing)
+    r = verify_run(read_run(path, name), single_shooting=True, rtol=1e-3, atol=1e-6, method="RK45")
+    assert r.drift_q == float("inf") and any("interval 10" in n for n in r.notes)
+    assert r.single_shooting_invariant_final < 1e-12  # the fatigue states went on to the end
+
+
+def test_invariant_is_reported(full_file, full_report):
+    r = full_report
+    assert r.invariant_sum == "xia: ma + mr + mf"
+    assert r.invariant < 1e-8 and r.invariant_final <= r.invariant
+    assert "invariant |1 - (ma + mr + mf)|" in r.table()
+    path, name = full_file
+    run = read_run(path, name)
+    mr = run.fatigue["mr"].copy()
+    mr[20, 3] -= 1e-3  # (the elbow extensor rests: mr ~ 1)
+    r2 = verify_run(_with(run, fatigue={**run.fatigue, "mr": mr}))
+    assert abs(r2.invariant - 1e-3) < 1e-6 and "node 20, elbow_minus" in r2.checks[[c.name for c in r2.checks].index(
+        "invariant |1 - (ma + mr + mf)|")].where
+    assert not r2.passed and [c.name for c in r2.failures] == ["gap fatigue states"]
+
+
+def test_task_coupling_and_bounds_violations(full_file):
+    path, name = full_file
+    run = read_run(path, name)
+    tol = VerifyTolerances(gap=1.0, gap_fatigue=1.0)  # look at the other checks only
+    q = run.q.copy()
+    q[25, 1] += 2e-3  # the 150 deg target
+    r = verify_run(_with(run, q=q), tol)
+    assert [c.name for c in r.failures] == ["task targets"] and abs(r.task - 2e-3) < 1e-9
+    mf = run.fatigue["mf"].copy()
+    mf[10, 2] = 0.999  # elbow_plus: TL + mf > 1 where it pulls
+    tp = run.tau_plus.copy()
+    tp[10, 1] = max(tp[10, 1], 5.0)
+    r = verify_run(_with(run, fatigue={**run.fatigue, "mf": mf}, tau_plus=tp), tol)
+    assert "coupling TL + m_fatigued in [0, 1]" in [c.name for c in r.failures]
+    assert "node 10, elbow_plus" in next(c.where for c in r.checks if c.name.startswith("coupling"))
+    tm = run.tau_minus.copy()
+    tm[3, 0] = -50.5
+    r = verify_run(_with(run, tau_minus=tm), tol)
+    assert "bound torques" in [c.name for c in r.failures] and abs(r.bound - 0.5) < 1e-9
+
+
+def test_no_study_stored(full_file):
+    path, name = full_file
+    r = verify_run(_with(read_run(path, name), study=""))
+    assert "no study stored: task not checked" in r.notes
+    assert np.isnan(r.task) and r.passed
+    assert "not checked" in r.table()
+
+
+def test_coarse_grid_fails_and_says_why():
+    """On the conftest's grid (2 substeps of 0.05 s) the optimiser whips the elbow to its velocity
+    bound in the last interval, where RK4 is off by rad/s: verify fails on the gap and says that
+    the nodes do solve their own discretisation."""
+    run = run_study(small_curl("full", cycles=1))
+    r = verify_run(run)
+    assert not r.passed and "gap qdot" in [c.name for c in r.failures]
+    assert r.rk4_residual < 1e-6 and r.rk4_truncation == pytest.approx(r.gap_qdot, rel=1e-6)
+    assert any("too coarse" in note for note in r.notes)
+    assert verify_run(run, VerifyTolerances(gap=10.0, gap_fatigue=1e-2)).passed
+
+
+def test_numpy_rhs_matches_the_models_rates_on_every_branch():
+    rng = np.random.default_rng(0)
+    models = [XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0),
+              MichaudFatigue(10, 10, 0.456, 0.0094, effort_threshold=0.2, effort_factor=0.1, stabilization_factor=1.0)]
+    for model in models:
+        f, p = numpy_rhs(model.kind), model.as_dict()
+        for _ in range(300):
+            m = rng.uniform(0, 1, model.n_states())
+            TL = float(rng.choice([rng.uniform(0, 1), p.get("effort_threshold", 0.5), m[0]]))
+            assert np.allclose(f(m, TL, p), model.rates(m, TL), rtol=1e-13, atol=1e-14)
+
+
+def test_cli_all_and_bad_input(full_file, sliding_file, tmp_path, capsys):
+    path, name = full_file
+    both = tmp_path / "both.h5"
+    write_run(both, read_run(path, name))
+    write_run(both, read_run(*sliding_file))
+    assert main(["verify", str(both), "--all"]) == 0
+    assert "2 of 2 runs passed" in capsys.readouterr().out
+    assert main(["verify", str(both), "--all", "--gap-tol", "1e-9"]) == 1
+    assert "0 of 2 runs passed" in capsys.readouterr().out
+    assert main(["verify", str(both)]) == 2  # several runs, none named
+    assert main(["verify", str(tmp_path / "missing.h5")]) == 2
+    assert main(["verify", str(path), "no/such/run"]) == 2
+    assert main(["verify", str(path), "--coupling-tol", "-1"]) == 2
+    assert main(["verify", str(path), "--single-shooting", "--rtol", "1e-8", "--atol", "1e-10"]) == 0
+    assert "single shooting: drift qdot" in capsys.readouterr().out
+
+
+def test_reproduce_report_rows(full_file):
+    path, name = full_file
+    rows = _verify_rows([path])
+    assert len(rows) == 1 and rows[0].startswith(f"| {name} |") and rows[0].endswith("| passed |")

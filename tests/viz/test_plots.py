@@ -1,0 +1,98 @@
+"""Figures from result files: every figure is a non-empty PNG (more than one colour) and PDF."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+from fatigue_pin.viz import plots
+from fatigue_pin.io.results import ResultFileError, read_run, write_run, write_search
+from conftest import make_curl_run
+
+
+def _check(paths: list[Path], stems: set[str] | None = None) -> None:
+    assert paths, "no figure written"
+    for p in paths:
+        assert p.is_file() and p.stat().st_size > 0, p
+    pngs = [p for p in paths if p.suffix == ".png"]
+    assert {p.with_suffix(".pdf") for p in pngs} == {p for p in paths if p.suffix == ".pdf"}
+    for png in pngs:
+        img = matplotlib.image.imread(png)
+        assert (img != img[0, 0]).any(), f"{png} has a single colour"
+    for pdf in (p for p in paths if p.suffix == ".pdf"):
+        assert pdf.read_bytes().startswith(b"%PDF"), pdf
+    if stems is not None:
+        assert {p.stem for p in pngs} == stems
+
+
+@pytest.mark.parametrize("horizon", ["full", "sliding"])
+@pytest.mark.parametrize("plot", [plots.plot_joint_angles, plots.plot_fatigue_states, plots.plot_torque_limits,
+                                  plots.plot_cycle_costs, plots.plot_solve_time])
+def test_each_run_figure(plot, horizon: str, tmp_path: Path) -> None:
+    path = write_run(tmp_path / "runs.h5", make_curl_run(name=f"{horizon}/fatigue_torque", n_cycles=3, horizon=horizon))
+    run = read_run(path)
+    paths = plot(run, tmp_path / "fig")
+    _check(paths)
+    assert all(p.name.startswith(f"{horizon}_fatigue_torque_") for p in paths)
+
+
+def test_capacity_figure_and_peak_torques(tmp_path: Path) -> None:
+    run = make_curl_run(name="full/fatigue_torque", n_cycles=3)
+    peak = plots.peak_torques(run)
+    per = run.tau_plus.shape[0] // 3
+    assert peak.shape == (3, 4)
+    np.testing.assert_allclose(peak[1, 0], np.abs(run.tau_plus[per:2 * per, 0]).max())
+    np.testing.assert_allclose(peak[2, 3], np.abs(run.tau_minus[2 * per:, 1]).max())
+    paths = plots.plot_capacity(run, tmp_path / "fig", holding={"elbow": 4.0})
+    _check(paths, {"full_fatigue_torque_capacity"})
+
+
+def test_target_loads_and_limits() -> None:
+    run = make_curl_run()
+    tl = plots.target_loads(run)
+    np.testing.assert_allclose(tl[:, 0], run.tau_plus[:, 0] / 50.0)
+    np.testing.assert_allclose(tl[:, 3], run.tau_minus[:, 1] / -50.0)
+    assert (tl >= 0).all()
+    del run.attrs["tau_limits"]
+    np.testing.assert_allclose(plots.tau_limits(run), [50, -50, 50, -50])
+    run.attrs["tau_limits"] = np.array([40.0, -30.0, 20.0, -10.0])
+    np.testing.assert_allclose(plots.target_loads(run)[:, 1], run.tau_minus[:, 0] / -30.0)
+
+
+def test_plot_file_with_several_runs(tmp_path: Path) -> None:
+    h5 = tmp_path / "runs.h5"
+    write_run(h5, make_curl_run(name="full/fatigue_torque", n_cycles=2))
+    write_run(h5, make_curl_run(name="sliding/torque", n_cycles=4, horizon="sliding"))
+    write_search(h5, "full_fatigue_torque", [
+        {"n_cycles": n, "converged": n < 4, "status": "ok" if n < 4 else "fail", "iterations": 10 * n,
+         "wall_time_s": 1.5 * n} for n in (1, 2, 3, 4)])
+    paths = plots.plot_file(h5, tmp_path / "out")
+    per_run = ("joint_angles", "fatigue_states", "torque_limits", "cycle_costs", "solve_time")
+    expected = {f"{r}_{f}" for r in ("full_fatigue_torque", "sliding_torque") for f in per_run}
+    _check(paths, expected | {"runs_comparison", "search_full_fatigue_torque"})
+
+
+def test_plot_file_forward_studies(tmp_path: Path) -> None:
+    from fatigue_pin.paper.forward import ForwardStudyConfig, run_forward_studies
+
+    cfg = ForwardStudyConfig(t_end=3.0, n_eval=301)
+    res = run_forward_studies(tmp_path / "fwd", progress=None, config=cfg)
+    back = plots.read_forward_studies(res.h5_path)
+    assert [(r.S, r.mr0) for r in back.study2] == [(r.S, r.mr0) for r in res.study2]
+    np.testing.assert_array_equal(back.study2[-1].trajectory.mf, res.study2[-1].trajectory.mf)
+    paths = plots.plot_file(res.h5_path, tmp_path / "figs")
+    _check(paths, {"study1_states", "study2_states", "study2_invariant_error"})
+
+
+def test_plot_file_rejects_other_files(tmp_path: Path) -> None:
+    import h5py
+
+    with h5py.File(tmp_path / "other.h5", "w") as h5:
+        h5["x"] = np.zeros(3)
+    with pytest.raises(ResultFileError, match="neither"):
+        plots.plot_file(tmp_path / "other.h5", tmp_path / "out")
+    with pytest.raises(ResultFileError, match="not found"):
+        plots.plot_file(tmp_path / "missing.h5", tmp_path / "out")
