@@ -1,11 +1,100 @@
 """fatigue_pin: predictive simulation of motion with actuator fatigue.
 
-Rigid-body models come from URDF files through Pinocchio, every signed torque actuator carries
-Xia's three-compartment fatigue model with an invariant stabiliser (3CC-S), and optimal control
-problems are written with CasADi Opti and solved over the full horizon or window by window.
+A rigid-body model from a fixed-base URDF (Pinocchio), a fatigue model on every signed torque
+actuator half (Xia 3CC, 3CC-S, 3CC-r, Michaud), a task with named cost terms, transcribed by
+multiple shooting and solved with IPOPT over the whole task, window by window, or searched for
+the maximum number of repetitions.
+
+The names a study script needs are importable from here (``from fatigue_pin import Study,
+run_study``); each lives in exactly one module of the subpackages, listed in docs/api.md and
+docs/architecture.md. They are loaded on first use, so ``import fatigue_pin`` stays cheap.
 """
 
-from fatigue_pin.robot.model import RobotModel, load_model
+from __future__ import annotations
 
-__all__ = ["RobotModel", "load_model"]
-__version__ = "0.1.0"
+import importlib
+from typing import Any
+
+from fatigue_pin.core.version import __version__
+
+# public name -> the module that owns it
+_API: dict[str, str] = {
+    # errors
+    "FatiguePinError": "fatigue_pin.core.errors",
+    "ModelError": "fatigue_pin.core.errors",
+    "ParameterError": "fatigue_pin.core.errors",
+    "DimensionError": "fatigue_pin.core.errors",
+    "TaskError": "fatigue_pin.core.errors",
+    # robot
+    "RobotModel": "fatigue_pin.robot.model",
+    "Payload": "fatigue_pin.robot.model",
+    "load_model": "fatigue_pin.robot.model",
+    "resolve_model": "fatigue_pin.robot.model",
+    # fatigue
+    "FatigueModel": "fatigue_pin.fatigue.models",
+    "XiaFatigue": "fatigue_pin.fatigue.models",
+    "MichaudFatigue": "fatigue_pin.fatigue.models",
+    "fatigue_model": "fatigue_pin.fatigue.models",
+    "simulate": "fatigue_pin.fatigue.models",
+    "preset": "fatigue_pin.fatigue.presets",
+    "load_preset_json": "fatigue_pin.fatigue.presets",
+    "endurance_time": "fatigue_pin.fatigue.endurance",
+    "calibrate": "fatigue_pin.fatigue.calibration",
+    "read_endurance_csv": "fatigue_pin.fatigue.calibration",
+    # optimal control problem
+    "SignedTorqueActuators": "fatigue_pin.ocp.actuators",
+    "Task": "fatigue_pin.ocp.task",
+    "JointTarget": "fatigue_pin.ocp.task",
+    "JointRange": "fatigue_pin.ocp.task",
+    "StateConstraint": "fatigue_pin.ocp.task",
+    "FrameTarget": "fatigue_pin.ocp.task",
+    "FrameOrientation": "fatigue_pin.ocp.task",
+    "FramePlane": "fatigue_pin.ocp.task",
+    "CostTerm": "fatigue_pin.ocp.costs",
+    "cost_term": "fatigue_pin.ocp.costs",
+    "Problem": "fatigue_pin.ocp.problem",
+    "StateLayout": "fatigue_pin.ocp.problem",
+    "Transcription": "fatigue_pin.ocp.transcription",
+    "Ocp": "fatigue_pin.ocp.transcription",
+    "SolverOptions": "fatigue_pin.ocp.solver",
+    # drivers
+    "OcpBuilder": "fatigue_pin.drivers.full",
+    "solve_full": "fatigue_pin.drivers.full",
+    "max_repetitions": "fatigue_pin.drivers.full",
+    "SearchResult": "fatigue_pin.drivers.full",
+    "SlidingSettings": "fatigue_pin.drivers.sliding",
+    "SlidingHorizon": "fatigue_pin.drivers.sliding",
+    "RunResult": "fatigue_pin.io.results",
+    # files
+    "Study": "fatigue_pin.io.study",
+    "StudyError": "fatigue_pin.io.study",
+    "run_study": "fatigue_pin.io.study",
+    "ResultFileError": "fatigue_pin.io.results",
+    "read_run": "fatigue_pin.io.results",
+    "write_run": "fatigue_pin.io.results",
+    "list_runs": "fatigue_pin.io.results",
+    # checks, sweeps, views
+    "verify_run": "fatigue_pin.verify.check",
+    "VerifyTolerances": "fatigue_pin.verify.check",
+    "Sweep": "fatigue_pin.sweep.jobs",
+    "run_sweep": "fatigue_pin.sweep.jobs",
+    "plot_run": "fatigue_pin.viz.plots",
+    "plot_file": "fatigue_pin.viz.plots",
+    "export_html": "fatigue_pin.viz.replay",
+}
+
+__all__ = sorted(_API) + ["__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    """Load a public name from its module on first use (PEP 562)."""
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'fatigue_pin' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))

@@ -493,7 +493,7 @@ def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Seq
 
     import h5py
 
-    from fatigue_pin import __version__ as version
+    from fatigue_pin.core.version import __version__ as version
 
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")

@@ -328,7 +328,7 @@ def write_h5(res: ForwardStudiesResult, path: Path | str) -> Path:
     """Write the results to ``path`` (crash-safe: ``path.tmp`` then ``os.replace``). Layout: ``docs/results.md``."""
     import h5py
 
-    from fatigue_pin import __version__ as version
+    from fatigue_pin.core.version import __version__ as version
 
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
