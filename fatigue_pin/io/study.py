@@ -82,6 +82,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "urdf": (_is_str, "a bundled model name, an example-robot-data name or a URDF path", REQUIRED),
         "gravity": (_is_numbers, "a list of 3 numbers (m/s^2)", None),
         "payload": (_is_table, "a table { frame, mass (kg), com (m), inertia (kg m^2) }", None),
+        "locked_joints": (_is_table, "a table { joint name = position (rad or m), ... }", None),
     },
     "task": {
         "cycle_duration": (_is_number, "a duration in seconds > 0", REQUIRED),
@@ -533,7 +534,7 @@ class Study:
 
             p = m["payload"]
             payload = Payload(p["frame"], p["mass"], tuple(p.get("com", (0.0, 0.0, 0.0))), p.get("inertia"))
-        return resolve_model(m["urdf"], gravity=m.get("gravity"), payload=payload)
+        return resolve_model(m["urdf"], gravity=m.get("gravity"), payload=payload, locked_joints=m.get("locked_joints"))
 
     def fatigue_spec(self, model):
         """Fatigue models of every half, as :meth:`SignedTorqueActuators.from_model` takes them."""

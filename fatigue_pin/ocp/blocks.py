@@ -66,12 +66,14 @@ class BlockPair:
     Attributes:
         diff: indices of the inputs stacked in ``w`` (those that depend on the decision variables).
         jac: ``jblk_<f>(w, others...) -> (y, J)``, J = dy/dw of shape (n_out, n_w), sparse.
-        hess: ``hblk_<f>(w, others..., mu) -> H``, H = tril(d2(mu' y)/dw2) of shape (n_w, n_w).
+        hess: ``hblk_<f>(w, others..., mu) -> H``, H = tril(d2(mu' y)/dw2) of shape (n_w, n_w);
+            None: the Lagrangian's Hessian leaves out the second derivatives of ``f`` (Gauss-Newton
+            for its rows, :attr:`~fatigue_pin.ocp.solver.SolverOptions.hessian`).
     """
 
     diff: tuple[int, ...]
     jac: ca.Function
-    hess: ca.Function
+    hess: ca.Function | None
 
 
 def differentiated_inputs(call: MappedCall, x: ca.MX) -> tuple[int, ...]:
@@ -96,8 +98,9 @@ def _maybe_expanded(f: ca.Function) -> ca.Function:
     return ca.Function(f.name(), sx.sx_in(), sx.call(sx.sx_in()), f.name_in(), f.name_out())
 
 
-def block_functions(f: ca.Function, diff: Sequence[int]) -> BlockPair:
-    """``jblk_<f>`` and ``hblk_<f>`` of a one-output function ``f`` for the inputs ``diff``.
+def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True) -> BlockPair:
+    """``jblk_<f>`` and ``hblk_<f>`` of a one-output function ``f`` for the inputs ``diff``
+    (``hessian=False``: no ``hblk_<f>``; the Lagrangian's Hessian then omits f's curvature).
 
     SX functions give SX blocks; MX functions (RK4 as calls of an SX right-hand side) are
     inlined, so the blocks call derivatives of the SX right-hand side only, and each block is
@@ -118,6 +121,8 @@ def block_functions(f: ca.Function, diff: Sequence[int]) -> BlockPair:
     mu = kind.sym("mu", f.size1_out(0))
     names = ["w", *[f.name_in(i) for i in range(f.n_in()) if i not in diff]]
     jac = ca.Function(JAC_BLOCK + f.name(), [w, *others], [y, ca.jacobian(y, w)], names, ["y", "J"])
+    if not hessian:
+        return BlockPair(diff, _maybe_expanded(jac), None)
     hess = ca.Function(HESS_BLOCK + f.name(), [w, *others, mu], [ca.tril(ca.hessian(ca.dot(mu, y), w)[0])],
                        [*names, "mu"], ["H"])
     return BlockPair(diff, _maybe_expanded(jac), _maybe_expanded(hess))
@@ -296,7 +301,8 @@ def nlp_derivatives(
             return None  # map inputs not affine in x, or g~ not linear in S
         A_csr = _csr(A)
         _add_jacobian(jac_assembly, pair.jac.sparsity_out(1), call.n, _csr(C.T), A_csr)
-        _add_hessian(hess_assembly, pair.hess.sparsity_out(0), call.n, A_csr)
+        if pair.hess is not None:
+            _add_hessian(hess_assembly, pair.hess.sparsity_out(0), call.n, A_csr)
         inputs.append((call, pair, W, others))
     jac_sp, jac_m = jac_assembly.build((g.numel(), x.numel()))
     hess_sp, hess_m = hess_assembly.build((x.numel(), x.numel()))
@@ -308,7 +314,8 @@ def nlp_derivatives(
         y, J = pair.jac.map(call.n, *map_args)(W, *others)
         y_values.append(y)
         j_nz.append(_nonzeros(J))
-        h_nz.append(_nonzeros(pair.hess.map(call.n, *map_args)(W, *others, mu)))
+        if pair.hess is not None:
+            h_nz.append(_nonzeros(pair.hess.map(call.n, *map_args)(W, *others, mu)))
     g_out, j_rest_nz = ca.Function("rest_jac", [x, p, *S], [gt, _nonzeros(j_rest)]).call([x, p, *y_values])
     jac = ca.sparsity_cast(ca.mtimes(jac_m, ca.vertcat(j_rest_nz, *j_nz)), jac_sp)
     # L~ is linear in S, so its Hessian in x does not depend on S: zeros keep the graph small

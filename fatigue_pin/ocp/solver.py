@@ -33,6 +33,8 @@ from fatigue_pin.core.progress import Progress, as_reporter
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
+#: Lagrangian Hessians of :attr:`SolverOptions.hessian`.
+HESSIANS = ("exact", "gauss-newton")
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
 
@@ -121,6 +123,12 @@ class SolverOptions:
             operations of the virtual machine per iteration. ``None`` (default): in ``library``
             mode; ``True``: also without compiling (blocks evaluated by CasADi); ``False``: never.
             Not used in ``nlp`` mode.
+        hessian: the Lagrangian's Hessian IPOPT gets: ``exact``, or ``gauss-newton``: without the
+            second derivatives of the rigid-body dynamics (the RK4 of ABA: Gauss-Newton for the
+            rigid-body gaps), the exact Hessian of the costs, the fatigue dynamics, the coupling
+            and the task's constraints kept. The same KKT point; only IPOPT's path differs, and
+            each iteration and the compile skip the largest derivative (needs the derivative
+            blocks, docs/ocp.md "Robot-scale speed").
     """
 
     linear_solver: str = "mumps"
@@ -140,8 +148,11 @@ class SolverOptions:
     compile_jobs: int | None = None
     accept_acceptable: bool = False
     derivative_blocks: bool | None = None
+    hessian: str = "exact"
 
     def __post_init__(self) -> None:
+        if self.hessian not in HESSIANS:
+            raise ParameterError(f"SolverOptions.hessian = {self.hessian!r}: expected one of {list(HESSIANS)}")
         if self.compile_mode not in COMPILE_MODES:
             raise ParameterError(f"SolverOptions.compile_mode = {self.compile_mode!r}: expected one of {list(COMPILE_MODES)}")
         if self.compile_jobs is not None and (isinstance(self.compile_jobs, bool) or not isinstance(self.compile_jobs, int)

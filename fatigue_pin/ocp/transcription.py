@@ -171,17 +171,18 @@ class IntervalFunctions:
         """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
         return [self.F_rb, self.F_fatigue, self.coupling, self.terms]
 
-    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]]) -> None:
+    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], no_hessian: tuple[str, ...] = ()) -> None:
         """Build the derivative blocks (:func:`fatigue_pin.ocp.blocks.block_functions`) of the
         library functions named in ``diffs``, for the inputs given there (those that depend on
-        the decision variables), from the original functions."""
+        the decision variables), from the original functions; those named in ``no_hessian``
+        get no Hessian block (Gauss-Newton for their rows)."""
         for f in self.library_functions():
             if f.name() in diffs:
-                self.blocks[f.name()] = block_functions(f, diffs[f.name()])
+                self.blocks[f.name()] = block_functions(f, diffs[f.name()], hessian=f.name() not in no_hessian)
 
     def block_functions(self) -> list[ca.Function]:
         """The block functions of :attr:`blocks` (compiled without derivatives)."""
-        return [g for pair in self.blocks.values() for g in (pair.jac, pair.hess)]
+        return [g for pair in self.blocks.values() for g in (pair.jac, pair.hess) if g is not None]
 
     def use(self, library) -> None:
         """Replace :meth:`library_functions` (and the block functions) by their compiled
@@ -189,7 +190,7 @@ class IntervalFunctions:
         functions = library.functions()
         for f in self.library_functions():
             setattr(self, f.name(), functions[f.name()])
-        self.blocks = {name: BlockPair(pair.diff, functions[pair.jac.name()], functions[pair.hess.name()])
+        self.blocks = {name: BlockPair(pair.diff, functions[pair.jac.name()], None if pair.hess is None else functions[pair.hess.name()])
                        for name, pair in self.blocks.items() if pair.jac.name() in functions}
         self.library = library
 
@@ -350,13 +351,14 @@ class Ocp:
         self.functions = functions or IntervalFunctions(problem, self.transcription, fatigue_calls=library_mode)
         self.layout = self.functions.layout
         self.cost_terms = problem.cost_names
+        self._check_hessian()
         library_compile_s = 0.0
         if library_mode and self.functions.library is None:
             self._build_library(progress)
             library_compile_s = self.functions.library.compile_time_s
         opti = self._formulate()
         if self._uses_blocks and self.functions.library is None and not self.functions.blocks:  # uncompiled
-            self.functions.build_blocks(self._differentiated_inputs(opti.x))
+            self.functions.build_blocks(self._differentiated_inputs(opti.x), self._no_hessian)
         blocks = self._block_derivatives if self._uses_blocks else None
         self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
                              label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks,
@@ -412,7 +414,7 @@ class Ocp:
             nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
             opts: dict = {"print_time": False}
             if self._uses_blocks:
-                self.functions.build_blocks(self._differentiated_inputs(x))
+                self.functions.build_blocks(self._differentiated_inputs(x), self._no_hessian)
                 opts.update(self._block_derivatives(nlp) or {})
                 if not opts.keys() & {"jac_g", "hess_lag"}:
                     self.functions.blocks = {}  # not usable for this problem: CasADi's own derivatives
@@ -519,6 +521,25 @@ class Ocp:
         if options.derivative_blocks is None:
             return options.library_mode
         return bool(options.derivative_blocks) and (options.library_mode or not options.compile)
+
+    @property
+    def _no_hessian(self) -> tuple[str, ...]:
+        """Interval functions whose second derivatives the Lagrangian's Hessian leaves out: the
+        rigid body's RK4 with ``SolverOptions.hessian = "gauss-newton"``."""
+        return ("F_rb",) if self.solver_options.hessian == "gauss-newton" else ()
+
+    def _check_hessian(self) -> None:
+        """The Gauss-Newton Hessian exists only as derivative blocks; and blocks reused from
+        another Ocp must match this one's Hessian."""
+        if self.solver_options.hessian == "exact" and not self.functions.blocks:
+            return
+        if self.solver_options.hessian != "exact" and not self._uses_blocks:
+            raise ParameterError(f"SolverOptions.hessian = {self.solver_options.hessian!r} needs the derivative blocks: "
+                                 "expected compile_mode = 'library' (or derivative_blocks = true without compiling)")
+        missing = {name for name, pair in self.functions.blocks.items() if pair.hess is None}
+        if self.functions.blocks and missing != set(self._no_hessian) & set(self.functions.blocks):
+            raise ParameterError(f"the interval functions were built for another Hessian than SolverOptions.hessian = "
+                                 f"{self.solver_options.hessian!r}; build them again (functions=None)")
 
     def _differentiated_inputs(self, x: ca.MX) -> dict[str, tuple[int, ...]]:
         """Per mapped interval function, the inputs that depend on the decision variables ``x``."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Mapping
 
 import casadi as ca
 import numpy as np
@@ -139,6 +140,8 @@ class RobotModel:
         aba: ``casadi.Function`` (q[nq], v[nv], tau[nv]) -> ddq[nv], Pinocchio's ABA on SX.
         rnea: ``casadi.Function`` (q[nq], v[nv], a[nv]) -> tau[nv], Pinocchio's RNEA on SX.
         payload: the :class:`Payload` added to ``pin_model`` (and so to ``aba``, ``rnea``), or None.
+        locked_joints: joints of the URDF held fixed (``(name, value)`` pairs, rad or m), removed
+            from ``pin_model`` by Pinocchio's ``buildReducedModel``; empty: none.
     """
 
     name: str
@@ -154,6 +157,7 @@ class RobotModel:
     aba: ca.Function = field(repr=False)
     rnea: ca.Function = field(repr=False)
     payload: Payload | None = None
+    locked_joints: tuple[tuple[str, float], ...] = ()
     _frames: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     # -- frame kinematics on CasADi symbols (fatigue_pin.robot.kinematics), cached per frame ----------
@@ -264,28 +268,60 @@ def _validate_joints(model: pin.Model, path: Path) -> None:
             )
 
 
-def resolve_model(name: str | Path | None = None, gravity: object = None, payload: Payload | None = None) -> RobotModel:
+def resolve_model(name: str | Path | None = None, gravity: object = None, payload: Payload | None = None,
+                  locked_joints: Mapping[str, float] | None = None) -> RobotModel:
     """Load a model by name or path: a bundled model (``arm26``), an example-robot-data name
-    (``ur5``, ``panda``), or the path of a URDF file; ``payload`` adds a load at a frame.
+    (``ur5``, ``panda``), or the path of a URDF file; ``payload`` adds a load at a frame and
+    ``locked_joints`` holds joints fixed (:func:`load_model`).
 
     Raises:
         ModelError: a name that is none of these, or a file that cannot be loaded.
     """
     g = None if gravity is None else np.asarray(gravity, dtype=float)
     if name is None:
-        return load_model(None, g, payload)
+        return load_model(None, g, payload, locked_joints)
     text = str(name)
     here = Path(__file__).resolve().parents[1]  # the package folder
     if text.isidentifier() and any((folder / f"{text}.urdf").is_file() for folder in (here / "urdf", here.parent / "urdf")):
-        return load_model(bundled_urdf(text), g, payload)
+        return load_model(bundled_urdf(text), g, payload, locked_joints)
     if text in EXAMPLE_ROBOTS:
-        return load_model(example_robot_urdf(text), g, payload)
+        return load_model(example_robot_urdf(text), g, payload, locked_joints)
     path = Path(text).expanduser()
     if not path.suffix and not path.exists():
         raise ModelError(
             f"model {text!r} is not a bundled model (arm26), an example-robot-data name {sorted(EXAMPLE_ROBOTS)} or an existing URDF path"
         )
-    return load_model(path, g, payload)
+    return load_model(path, g, payload, locked_joints)
+
+
+def lock_joints(model: pin.Model, locked: Mapping[str, float], path: Path) -> pin.Model:
+    """``model`` with the joints of ``locked`` (name -> position, rad or m) held fixed at their
+    values: Pinocchio's ``buildReducedModel`` merges the bodies they carry into their parents.
+
+    Raises:
+        ModelError: a name that is no joint of the model, a value that is not a finite number
+            within the joint's position limits, or every joint locked.
+    """
+    q_ref = pin.neutral(model)
+    ids = []
+    movable = [model.names[i] for i in range(1, model.njoints)]
+    for name, value in locked.items():
+        if name not in movable:
+            raise ModelError(f"model.locked_joints: joint {name!r} is not in {path.name}; its joints are {movable}")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
+            raise ModelError(f"model.locked_joints.{name} = {value!r}: expected a finite joint position (rad or m)")
+        j = model.getJointId(name)
+        i = model.joints[j].idx_q
+        lo, hi = float(model.lowerPositionLimit[i]), float(model.upperPositionLimit[i])
+        if not lo - 1e-12 <= value <= hi + 1e-12:
+            raise ModelError(f"model.locked_joints.{name} = {value!r}: expected a position within the joint's limits [{lo:g}, {hi:g}]")
+        q_ref[i] = float(value)
+        ids.append(j)
+    if len(ids) == len(movable):
+        raise ModelError(f"model.locked_joints locks every joint of {path.name}; expected at least one joint left to move")
+    reduced = pin.buildReducedModel(model, sorted(ids), q_ref)
+    reduced.name = model.name
+    return reduced
 
 
 def _check_urdf_text(path: Path) -> None:
@@ -319,7 +355,8 @@ def _check_urdf_text(path: Path) -> None:
                     raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: limit has no {key}")
 
 
-def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None) -> RobotModel:
+def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None,
+               locked_joints: Mapping[str, float] | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
 
     Args:
@@ -327,6 +364,8 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         gravity: optional gravity vector (3,) in the world frame, m/s^2 (default (0, 0, -9.81)).
         payload: an optional :class:`Payload` fixed to one of the model's frames; it is part of
             ``pin_model`` and of the CasADi dynamics (the URDF file is left as it is).
+        locked_joints: joints held fixed, name -> position (rad or m) within the joint's limits
+            (:func:`lock_joints`; e.g. the Panda's fingers): they leave q, v and tau.
 
     Returns:
         A :class:`RobotModel`. Bounds come from the URDF ``<limit>`` tags; a missing or infinite
@@ -345,6 +384,9 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
     except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
         raise ModelError(f"URDF file {str(path)!r} does not parse: {' '.join(str(exc).split())}") from exc
     _validate_joints(model, path)
+    if locked_joints:
+        model = lock_joints(model, dict(locked_joints), path)
+    locked = tuple((str(k), float(v)) for k, v in (locked_joints or {}).items())
     if model.nv == 0:
         raise ModelError(f"{path}: the model has no movable joint")
     if gravity is not None:
@@ -383,4 +425,5 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         aba=aba,
         rnea=rnea,
         payload=payload,
+        locked_joints=locked,
     )
