@@ -94,7 +94,8 @@ def _run(study, args: argparse.Namespace) -> int:
         return 0 if ok else 1
     if kind == "sliding":
         print(f"{result.attrs['repetitions']} repetitions ({result.attrs['converged_windows']} windows converged, "
-              f"{result.attrs['wall_time_s']:.1f} s solving); wrote {args.out} [{result.name}]")
+              f"{result.attrs['wall_time_s']:.1f} s solving, median real-time factor "
+              f"{result.attrs.get('median_real_time_factor', float('nan')):.2f}); wrote {args.out} [{result.name}]")
         return 0
     failed = ", ".join(f"{n}: {k}" for n, k in result.failures.items()) or "none"
     print(f"maximum repetitions: {result.max_cycles} (tried N = {[r['n_cycles'] for r in result.tried]}; failed: {failed}); wrote {args.out}")

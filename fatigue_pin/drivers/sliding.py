@@ -105,6 +105,19 @@ def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
     return settings.advance * (converged_windows - 1) + settings.window
 
 
+def real_time_factors(windows: np.ndarray, advanced_s: float) -> np.ndarray:
+    """Seconds of solving per second of motion advanced, of every window of a window table
+    (:data:`WINDOW_DTYPE`): its wall time over the ``advanced_s`` seconds (A cycles) it keeps.
+    Below 1: the windows are planned faster than the robot moves."""
+    return np.asarray(windows["wall_time_s"], dtype=float) / advanced_s
+
+
+def median_real_time_factor(windows: np.ndarray, advanced_s: float) -> float:
+    """Median :func:`real_time_factors` of the converged windows (NaN when none converged)."""
+    ok = np.asarray(windows["converged"], dtype=bool) if len(windows) else np.zeros(0, dtype=bool)
+    return float(np.median(real_time_factors(windows, advanced_s)[ok])) if ok.any() else float("nan")
+
+
 def failed_window_name(name: str) -> str:
     """Run name of the failed window of the sliding run ``name`` (its last IPOPT iterate)."""
     return f"{name}{FAILED_WINDOW_SUFFIX}"
@@ -154,6 +167,11 @@ class SlidingHorizon:
     @property
     def _n(self) -> int:
         return self.ocp.task.intervals_per_cycle
+
+    @property
+    def _advanced_s(self) -> float:
+        """Seconds of motion a window advances (A cycles)."""
+        return self.sliding.advance * self.ocp.task.cycle_duration
 
     def window_guess(self, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Guess of a window from the previous window's states (K n + 1, nx) and controls (K n, nu):
@@ -208,6 +226,7 @@ class SlidingHorizon:
             compile_time_s=ocp.compile_time_s,
             iterations=int(table["iterations"].sum()) if table.size else 0,
             converged_windows=converged,
+            median_real_time_factor=median_real_time_factor(table, self._advanced_s),
         )
         t = np.arange(state.x.shape[0]) * ocp.task.dt
         return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table, study=self.study)
@@ -289,6 +308,7 @@ class SlidingHorizon:
             mf_end = sol.x[A * n, fatigued_rows]
             rep.line(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
                      f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
+                     f" (real-time factor {sol.wall_time_s / self._advanced_s:.2f})"
                      f"{'' if limit is None else f' (limit {limit} it)'}  max mf {mf_end.max():.3f}")
             before = state.n_cycles if state is not None else 0
             if state is None:
@@ -319,4 +339,7 @@ class SlidingHorizon:
         bar.close()
         if state is None:
             raise RuntimeError("no window was solved")
-        return self._run_result(state, name, build_time)
+        result = self._run_result(state, name, build_time)
+        rep.line(f"median real-time factor {result.attrs['median_real_time_factor']:.2f} "
+                 f"(s of solving per s of motion advanced, {result.attrs['converged_windows']} converged windows)")
+        return result

@@ -131,6 +131,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "compile_mode": (_is_str, "'library' (once per model) or 'nlp' (once per horizon)", "library"),
         "compile_jobs": (_is_int, "a number of compiler processes >= 1", None),
         "accept_acceptable": (_is_bool, "true or false", False),
+        "hessian": (_is_str, "'exact' or 'gauss-newton'", "exact"),
     },
 }
 TARGET_KEYS: dict[str, Check] = {

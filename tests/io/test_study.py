@@ -153,3 +153,19 @@ def test_set_changes_a_key_of_the_study(tmp_path):
     stored = Study.from_toml(run.study)
     assert stored.data["fatigue"]["S"] == 0 and stored.data["costs"]["torque"]["weight"] == 0
     assert run.attrs["S"] == 0.0 and math.isfinite(run.attrs["objective"])
+
+
+def test_model_locked_joints_key_reduces_the_model():
+    """``[model] locked_joints = { name = value }`` reaches the model, survives the TOML round
+    trip, and a bad joint name is one ModelError line."""
+    from pathlib import Path
+
+    from fatigue_pin.core.errors import ModelError
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "studies" / "panda_scale.toml"
+    study = Study.from_file(path)
+    assert study.model().nv == 7
+    assert Study.from_toml(study.to_toml()).data["model"]["locked_joints"] == study.data["model"]["locked_joints"]
+    bad = study.replace({"model.locked_joints": {"panda_finger_joint9": 0.0}})
+    with pytest.raises(ModelError, match="joint 'panda_finger_joint9' is not in panda.urdf"):
+        bad.model()

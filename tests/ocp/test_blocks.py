@@ -16,6 +16,7 @@ import pytest
 from conftest import small_curl
 from fatigue_pin.ocp.blocks import MappedCall, block_functions, nlp_derivatives
 from fatigue_pin.io.study import Study
+from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.transcription import Ocp
 
 UR5_STUDY = Path(__file__).resolve().parents[2] / "studies" / "ur5_carry.toml"
@@ -87,3 +88,55 @@ def test_nonlinear_use_of_a_map_output_keeps_casadis_derivatives():
     assert nlp_derivatives(nlp, [MappedCall(f, (X,), out, 4)], blocks) is None
     linear = {**nlp, "f": ca.sum1(ca.sum2(out))}
     assert nlp_derivatives(linear, [MappedCall(f, (X,), out, 4)], blocks) is not None
+
+
+def test_gauss_newton_hessian_drops_only_the_rigid_body_curvature(arm26):
+    """``hessian = "gauss-newton"``: the block Hessian equals CasADi's exact Hessian of the
+    Lagrangian with the rigid-body gap multipliers set to zero (only their second derivatives
+    leave), and the Jacobian is unchanged."""
+    study = small_curl()
+    exact = _ocp(study, arm26, 1, blocks=True)
+    solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, hessian="gauss-newton")
+    gn = Ocp(study.problem(arm26), 1, study.transcription(), solver)
+    assert gn.functions.blocks["F_rb"].hess is None and gn.functions.blocks["F_fatigue"].hess is not None
+    reference = ca.nlpsol("reference", "ipopt", gn.nlp.problem, {"print_time": False})
+    hess_ref = reference.get_function("nlp_hess_l")
+    # the rigid-body gap rows of g: those that depend on the output of the mapped F_rb
+    g = gn.nlp.problem["g"]
+    call = next(c for c in gn.mapped_calls if c.function.name() == "F_rb")
+    S = ca.MX.sym("S", call.out.sparsity())
+    rb_rows = np.flatnonzero(np.asarray(ca.DM(ca.jacobian(ca.graph_substitute(g, [call.out], [S]), S).sparsity(), 1)).sum(axis=1))
+    assert rb_rows.size == call.out.numel()
+    rng = np.random.default_rng(3)
+    z = gn.flatten(*gn.rest_guess()) + 0.3 * rng.normal(size=gn.nlp.n_x)
+    p, lam_f, lam_g = gn.parameter_vector(), 0.7, rng.normal(size=gn.nlp.n_g)
+    kept = lam_g.copy()
+    kept[rb_rows] = 0.0
+    mine = np.asarray(ca.densify(gn.nlp.derivatives["hess_lag"](z, p, lam_f, lam_g)))
+    assert np.allclose(mine, np.triu(np.asarray(ca.densify(hess_ref(z, p, lam_f, kept)))), rtol=1e-11, atol=1e-10)
+    full = np.triu(np.asarray(ca.densify(hess_ref(z, p, lam_f, lam_g))))
+    assert np.abs(mine - full).max() > 1e-3  # the rigid body's curvature did go
+    jac_gn, jac_exact = gn.nlp.derivatives["jac_g"](z, p)[1], exact.nlp.derivatives["jac_g"](z, p)[1]
+    assert float(ca.norm_inf(ca.densify(jac_gn - jac_exact))) == 0.0
+
+
+def test_gauss_newton_reaches_the_exact_hessians_optimum(arm26):
+    """Same KKT point (solved to tol 1e-9): objective within 1e-6 relative, states within 1e-4."""
+    study = small_curl()
+    sols = {}
+    for hessian in ("exact", "gauss-newton"):
+        solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, hessian=hessian, tol=1e-9)
+        sols[hessian] = Ocp(study.problem(arm26), 2, study.transcription(), solver).solve()
+    exact, gn = sols["exact"], sols["gauss-newton"]
+    assert exact.success and gn.success
+    assert gn.objective == pytest.approx(exact.objective, rel=1e-6)
+    assert np.abs(gn.x - exact.x).max() < 1e-4
+
+
+def test_gauss_newton_needs_the_blocks(arm26):
+    study = small_curl()
+    solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=False, hessian="gauss-newton")
+    with pytest.raises(ParameterError, match="hessian = 'gauss-newton' needs the derivative blocks"):
+        Ocp(study.problem(arm26), 1, study.transcription(), solver)
+    with pytest.raises(ParameterError, match="SolverOptions.hessian = 'newton'"):
+        dataclasses.replace(study.solver(), hessian="newton")

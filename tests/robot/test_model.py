@@ -98,3 +98,47 @@ def test_wrong_state_size(arm26):
 def test_unknown_joint_index(arm26):
     with pytest.raises(ModelError, match="wrist"):
         arm26.joint_index("wrist")
+
+
+PANDA_FINGERS = {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.03}
+
+
+def test_locked_joints_leave_the_model_and_keep_the_dynamics():
+    """Locking the Panda's fingers removes them from q, v and tau (nv 9 -> 7); the inverse
+    dynamics of the other joints equal numeric Pinocchio's RNEA of the full model with the
+    fingers held at their values (zero finger velocity and acceleration)."""
+    import pinocchio as pin
+
+    from fatigue_pin.robot.model import resolve_model
+
+    full = resolve_model("panda")
+    locked = resolve_model("panda", locked_joints=PANDA_FINGERS)
+    assert (full.nv, locked.nv) == (9, 7)
+    assert locked.joint_names == full.joint_names[:7]
+    assert dict(locked.locked_joints) == PANDA_FINGERS
+    model, data = full.pin_model, full.pin_model.createData()
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        q = rng.uniform(locked.q_lower, locked.q_upper)
+        v, a = rng.normal(size=7), rng.normal(size=7)
+        q_full = np.concatenate([q, [0.02, 0.03]])
+        tau = pin.rnea(model, data, q_full, np.r_[v, 0.0, 0.0], np.r_[a, 0.0, 0.0])[:7]
+        assert np.allclose(np.asarray(locked.rnea(q, v, a)).reshape(-1), tau, atol=1e-9)
+
+
+@pytest.mark.parametrize("locked, message", [
+    ({"panda_finger_joint3": 0.0}, "joint 'panda_finger_joint3' is not in panda.urdf"),
+    ({"panda_finger_joint1": 0.05}, r"locked_joints.panda_finger_joint1 = 0.05: expected a position within the joint's limits \[0, 0.04\]"),
+    ({"panda_finger_joint1": "open"}, "expected a finite joint position"),
+])
+def test_locked_joints_reject_unknown_names_and_values_outside_the_limits(locked, message):
+    from fatigue_pin.robot.model import resolve_model
+
+    with pytest.raises(ModelError, match=message) as info:
+        resolve_model("panda", locked_joints=locked)
+    assert "\n" not in str(info.value)
+
+
+def test_locking_every_joint_is_refused(arm26):
+    with pytest.raises(ModelError, match="locks every joint"):
+        load_model(None, locked_joints={"shoulder": 0.0, "elbow": 0.5})
