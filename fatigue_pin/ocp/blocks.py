@@ -98,9 +98,11 @@ def _maybe_expanded(f: ca.Function) -> ca.Function:
     return ca.Function(f.name(), sx.sx_in(), sx.call(sx.sx_in()), f.name_in(), f.name_out())
 
 
-def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True) -> BlockPair:
+def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True, hessian_of: ca.Function | None = None) -> BlockPair:
     """``jblk_<f>`` and ``hblk_<f>`` of a one-output function ``f`` for the inputs ``diff``
-    (``hessian=False``: no ``hblk_<f>``; the Lagrangian's Hessian then omits f's curvature).
+    (``hessian=False``: no ``hblk_<f>``; the Lagrangian's Hessian then omits f's curvature;
+    ``hessian_of``: ``hblk_<f>`` holds the second derivatives of this function of the same
+    signature instead, e.g. a coarser integrator of the same flow: an approximate Hessian).
 
     SX functions give SX blocks; MX functions (RK4 as calls of an SX right-hand side) are
     inlined, so the blocks call derivatives of the SX right-hand side only, and each block is
@@ -123,6 +125,8 @@ def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True) -
     jac = ca.Function(JAC_BLOCK + f.name(), [w, *others], [y, ca.jacobian(y, w)], names, ["y", "J"])
     if not hessian:
         return BlockPair(diff, _maybe_expanded(jac), None)
+    if hessian_of is not None:
+        y = hessian_of.call(args, True, False)[0] if kind is ca.MX else hessian_of(*args)
     hess = ca.Function(HESS_BLOCK + f.name(), [w, *others, mu], [ca.tril(ca.hessian(ca.dot(mu, y), w)[0])],
                        [*names, "mu"], ["H"])
     return BlockPair(diff, _maybe_expanded(jac), _maybe_expanded(hess))

@@ -34,7 +34,7 @@ from fatigue_pin.core.progress import Progress, as_reporter
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
 #: Lagrangian Hessians of :attr:`SolverOptions.hessian`.
-HESSIANS = ("exact", "gauss-newton")
+HESSIANS = ("exact", "gauss-newton", "one-step")
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
 
@@ -128,7 +128,10 @@ class SolverOptions:
             rigid-body gaps), the exact Hessian of the costs, the fatigue dynamics, the coupling
             and the task's constraints kept. The same KKT point; only IPOPT's path differs, and
             each iteration and the compile skip the largest derivative (needs the derivative
-            blocks, docs/ocp.md "Robot-scale speed").
+            blocks, docs/ocp.md "Robot-scale speed"). ``one-step``: the rigid body's second
+            derivatives from one RK4 step over each interval instead of ``substeps`` steps (an
+            approximation of the same flow's curvature; the constraints, their Jacobian and so
+            the optimum stay those of the transcription).
     """
 
     linear_solver: str = "mumps"

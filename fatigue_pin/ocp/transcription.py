@@ -138,12 +138,12 @@ class IntervalFunctions:
         y = ca.SX.sym("y", nq + nv)
         tau = ca.SX.sym("tau", nv)
         self.f_rb = ca.Function("f_rb", [y, tau], [ca.vertcat(y[nq:], model.aba(y[:nq], y[nq:], tau))], ["y", "tau"], ["ydot"])
-        if transcription.expand:
-            self.F_rb = ca.Function("F_rb", [y, tau], [rk4(self.f_rb, y, (tau,), h, substeps)], ["y", "tau"], ["y_next"])
-        else:
-            # RK4 as MX calls of the SX f_rb: its derivative code stays small (fast to compile)
-            y_mx, tau_mx = ca.MX.sym("y", nq + nv), ca.MX.sym("tau", nv)
-            self.F_rb = ca.Function("F_rb", [y_mx, tau_mx], [rk4(self.f_rb, y_mx, (tau_mx,), h, substeps)], ["y", "tau"], ["y_next"])
+        # expanded: one SX function; else RK4 as MX calls of the SX f_rb (small derivative code,
+        # fast to compile)
+        ys, taus = (y, tau) if transcription.expand else (ca.MX.sym("y", nq + nv), ca.MX.sym("tau", nv))
+        self.F_rb = ca.Function("F_rb", [ys, taus], [rk4(self.f_rb, ys, (taus,), h, substeps)], ["y", "tau"], ["y_next"])
+        # one RK4 step over the whole interval: the rigid body's approximate Hessian of ``one-step``
+        self.F_rb_one_step = ca.Function("F_rb_one_step", [ys, taus], [rk4(self.f_rb, ys, (taus,), task.dt, 1)], ["y", "tau"], ["y_next"])
 
         m = ca.SX.sym("m", actuators.n_states)
         u = ca.SX.sym("u", nu)
@@ -156,6 +156,8 @@ class IntervalFunctions:
         else:
             self.F_fatigue = ca.Function("F_fatigue", [m, u, p], [rk4(self.f_fatigue, m, (u, p), h, substeps)], ["m", "u", "p"], ["m_next"])
         self.library = None  # the compiled library once :meth:`use` has swapped the functions
+        #: the Hessian the rigid body's block was built for (:meth:`build_blocks`)
+        self.blocks_hessian = "exact"
         #: derivative blocks per interval function (:mod:`fatigue_pin.ocp.blocks`), once built
         self.blocks: dict[str, BlockPair] = {}
 
@@ -171,14 +173,20 @@ class IntervalFunctions:
         """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
         return [self.F_rb, self.F_fatigue, self.coupling, self.terms]
 
-    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], no_hessian: tuple[str, ...] = ()) -> None:
+    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], hessian: str = "exact") -> None:
         """Build the derivative blocks (:func:`fatigue_pin.ocp.blocks.block_functions`) of the
         library functions named in ``diffs``, for the inputs given there (those that depend on
-        the decision variables), from the original functions; those named in ``no_hessian``
-        get no Hessian block (Gauss-Newton for their rows)."""
+        the decision variables), from the original functions. ``hessian``
+        (:attr:`SolverOptions.hessian <fatigue_pin.ocp.solver.SolverOptions.hessian>`) says what
+        the rigid body's Hessian block holds: ``exact``, nothing (``gauss-newton``) or the
+        second derivatives of one RK4 step over the interval (``one-step``)."""
         for f in self.library_functions():
-            if f.name() in diffs:
-                self.blocks[f.name()] = block_functions(f, diffs[f.name()], hessian=f.name() not in no_hessian)
+            if f.name() not in diffs:
+                continue
+            rb = f.name() == "F_rb"
+            self.blocks[f.name()] = block_functions(f, diffs[f.name()], hessian=not (rb and hessian == "gauss-newton"),
+                                                    hessian_of=self.F_rb_one_step if rb and hessian == "one-step" else None)
+        self.blocks_hessian = hessian
 
     def block_functions(self) -> list[ca.Function]:
         """The block functions of :attr:`blocks` (compiled without derivatives)."""
@@ -358,7 +366,7 @@ class Ocp:
             library_compile_s = self.functions.library.compile_time_s
         opti = self._formulate()
         if self._uses_blocks and self.functions.library is None and not self.functions.blocks:  # uncompiled
-            self.functions.build_blocks(self._differentiated_inputs(opti.x), self._no_hessian)
+            self.functions.build_blocks(self._differentiated_inputs(opti.x), self.solver_options.hessian)
         blocks = self._block_derivatives if self._uses_blocks else None
         self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
                              label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks,
@@ -414,7 +422,7 @@ class Ocp:
             nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
             opts: dict = {"print_time": False}
             if self._uses_blocks:
-                self.functions.build_blocks(self._differentiated_inputs(x), self._no_hessian)
+                self.functions.build_blocks(self._differentiated_inputs(x), self.solver_options.hessian)
                 opts.update(self._block_derivatives(nlp) or {})
                 if not opts.keys() & {"jac_g", "hess_lag"}:
                     self.functions.blocks = {}  # not usable for this problem: CasADi's own derivatives
@@ -522,24 +530,16 @@ class Ocp:
             return options.library_mode
         return bool(options.derivative_blocks) and (options.library_mode or not options.compile)
 
-    @property
-    def _no_hessian(self) -> tuple[str, ...]:
-        """Interval functions whose second derivatives the Lagrangian's Hessian leaves out: the
-        rigid body's RK4 with ``SolverOptions.hessian = "gauss-newton"``."""
-        return ("F_rb",) if self.solver_options.hessian == "gauss-newton" else ()
-
     def _check_hessian(self) -> None:
-        """The Gauss-Newton Hessian exists only as derivative blocks; and blocks reused from
-        another Ocp must match this one's Hessian."""
-        if self.solver_options.hessian == "exact" and not self.functions.blocks:
-            return
-        if self.solver_options.hessian != "exact" and not self._uses_blocks:
-            raise ParameterError(f"SolverOptions.hessian = {self.solver_options.hessian!r} needs the derivative blocks: "
+        """An approximate Hessian exists only as derivative blocks; and blocks reused from
+        another Ocp must have been built for this one's Hessian."""
+        hessian = self.solver_options.hessian
+        if hessian != "exact" and not self._uses_blocks:
+            raise ParameterError(f"SolverOptions.hessian = {hessian!r} needs the derivative blocks: "
                                  "expected compile_mode = 'library' (or derivative_blocks = true without compiling)")
-        missing = {name for name, pair in self.functions.blocks.items() if pair.hess is None}
-        if self.functions.blocks and missing != set(self._no_hessian) & set(self.functions.blocks):
-            raise ParameterError(f"the interval functions were built for another Hessian than SolverOptions.hessian = "
-                                 f"{self.solver_options.hessian!r}; build them again (functions=None)")
+        if self.functions.blocks and self.functions.blocks_hessian != hessian:
+            raise ParameterError(f"the interval functions were built for SolverOptions.hessian = {self.functions.blocks_hessian!r}, "
+                                 f"not {hessian!r}; build them again (functions=None)")
 
     def _differentiated_inputs(self, x: ca.MX) -> dict[str, tuple[int, ...]]:
         """Per mapped interval function, the inputs that depend on the decision variables ``x``."""
