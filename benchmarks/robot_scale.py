@@ -51,11 +51,12 @@ CASES = {
 #: configuration name -> study changes (dotted key -> value)
 CONFIGS: dict[str, dict] = {
     "exact": {},
+    "one-step": {"solver.hessian": "one-step"},
     "gauss-newton": {"solver.hessian": "gauss-newton"},
-    "gn-substeps3": {"solver.hessian": "gauss-newton", "transcription.substeps": 3},
-    "gn-substeps2": {"solver.hessian": "gauss-newton", "transcription.substeps": 2},
-    "gn-warm": {"solver.hessian": "gauss-newton", "horizon.warm_start": True},
-    "exact-warm": {"horizon.warm_start": True},
+    "substeps2": {"transcription.substeps": 2},
+    "one-step-substeps2": {"solver.hessian": "one-step", "transcription.substeps": 2},
+    "warm": {"horizon.warm_start": True},
+    "one-step-warm": {"solver.hessian": "one-step", "horizon.warm_start": True},
 }
 
 
@@ -69,7 +70,6 @@ def child(case: str, config: str, windows: int, cache: str, out: str) -> None:
     path, limit = CASES[case]
     study = Study.from_file(path)
     changes = dict(CONFIGS[config])
-    warm = bool(changes.pop("horizon.warm_start", False))
     if changes:
         study = study.replace(changes)
     h = study.horizon
@@ -78,7 +78,7 @@ def child(case: str, config: str, windows: int, cache: str, out: str) -> None:
     problem = study.problem()
     settings = SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=max_cycles, end_tolerance=h["end_tolerance"],
                                failure_iterations=h["failure_iterations"], min_iterations=h["min_iterations"], warmup=h["warmup"],
-                               guess_fatigue=h["guess_fatigue"], **({"warm_start": True} if warm else {}))
+                               guess_fatigue=h["guess_fatigue"], warm_start=h["warm_start"])
     runner = SlidingHorizon(problem, settings, study.transcription(), study.solver(cache), guess=h["guess"])
     build = time.perf_counter() - t0
     result: dict = {"case": case, "config": config, "build_s": build, "compile_s": float(runner.ocp.compile_time_s),

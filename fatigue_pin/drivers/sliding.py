@@ -58,6 +58,10 @@ class SlidingSettings:
             window's initial state under the copied controls, so the guess has no fatigue gaps) or
             ``copy`` (copied with the rest of the previous window's second cycle, as the authors'
             code does: the guess jumps back at every cycle boundary).
+        warm_start: start every window after the first from the previous converged window's
+            primal and dual solution shifted by A cycles (:mod:`fatigue_pin.ocp.warm`), with
+            IPOPT's ``warm_start_init_point``, instead of the guess above. A resumed run starts
+            its first window cold.
     """
 
     window: int = 3
@@ -68,8 +72,11 @@ class SlidingSettings:
     min_iterations: int = 200
     warmup: int = 3
     guess_fatigue: str = "integrate"
+    warm_start: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.warm_start, bool):
+            raise ParameterError(f"SlidingSettings.warm_start = {self.warm_start!r}: expected true or false")
         if self.guess_fatigue not in ("integrate", "copy"):
             raise ParameterError(f"SlidingSettings.guess_fatigue = {self.guess_fatigue!r}: expected 'integrate' or 'copy'")
         if not (isinstance(self.window, int) and self.window >= 1):
@@ -187,6 +194,18 @@ class SlidingHorizon:
         L = self.ocp.layout
         return self.ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u), u
 
+    def _warm_start(self, previous: Any) -> Any:
+        """The previous window's NLP result shifted by A cycles (:mod:`fatigue_pin.ocp.warm`)."""
+        import dataclasses
+
+        from fatigue_pin.ocp.warm import shift_maps, shifted
+
+        if getattr(self, "_shift", None) is None:
+            self._shift = shift_maps(self.ocp, self.sliding.advance)
+        x_map, g_map = self._shift
+        return dataclasses.replace(previous, x=shifted(previous.x, x_map), lam_x=shifted(previous.lam_x, x_map),
+                                   lam_g=shifted(previous.lam_g, g_map))
+
     def _iteration_limit(self, state: _State) -> int | None:
         """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
         iterations of the first ``warmup`` converged windows (fixed once known, so a resumed run
@@ -283,6 +302,7 @@ class SlidingHorizon:
         solved = 0
         fatigued_rows = [ocp.layout.nq + ocp.layout.nv + r for r in ocp.actuators.fatigued_rows()]
         bar = rep.bar(self.sliding.max_cycles, "cycles kept", "cycle")
+        last = None  # the NLP result of the last window, if it converged (warm starts)
         if state is not None:
             bar.update(state.n_cycles)
         while state is None or not state.done:
@@ -299,7 +319,11 @@ class SlidingHorizon:
                 x_init = x_prev[A * n].copy()
                 guess = self.window_guess(x_init, x_prev, u_prev)
             limit = self._iteration_limit(state) if state is not None else None
-            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit)
+            warm = self._warm_start(last) if (self.sliding.warm_start and last is not None) else None
+            if warm is not None:
+                guess = ocp.unflatten(warm.x)
+            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
+            last = sol.nlp if sol.success else None
             solved += 1
             index = len(state.windows) if state is not None else 0
             row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)

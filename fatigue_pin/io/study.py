@@ -114,6 +114,7 @@ SCHEMA: dict[str, dict[str, Check]] = {
         "min_iterations": (_is_int, "an integer >= 0", 200),
         "warmup": (_is_int, "an integer >= 0", 3),
         "guess_fatigue": (_is_str, "'integrate' or 'copy'", "integrate"),
+        "warm_start": (_is_bool, "true or false", False),
     },
     "solver": {
         "linear_solver": (_is_str, "an IPOPT linear solver name (e.g. 'mumps')", "mumps"),
@@ -694,7 +695,8 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     if h["kind"] == "sliding":
         sliding = SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=h["max_cycles"],
                                   end_tolerance=h["end_tolerance"], failure_iterations=h["failure_iterations"],
-                                  min_iterations=h["min_iterations"], warmup=h["warmup"], guess_fatigue=h["guess_fatigue"])
+                                  min_iterations=h["min_iterations"], warmup=h["warmup"], guess_fatigue=h["guess_fatigue"],
+                                  warm_start=h["warm_start"])
         runner = SlidingHorizon(problem, sliding, tr, sol_opts, guess=h["guess"], study=text, labels=study.labels, progress=say)
         return runner.run(out, name=name, resume=resume, progress=say)
     return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say, out=out,

@@ -35,6 +35,11 @@ from fatigue_pin.core.progress import Progress, as_reporter
 COMPILE_MODES = ("library", "nlp")
 #: Lagrangian Hessians of :attr:`SolverOptions.hessian`.
 HESSIANS = ("exact", "gauss-newton", "one-step")
+#: IPOPT options of a warm-started solve (:meth:`NlpSolver.solve` with ``warm_start``): start
+#: from the given primal and dual point, pushed 1e-3 off the bounds, with barrier 1e-2 (on the small
+#: curl: 30 % fewer iterations than cold windows; 1e-4 and 1e-6 gave 10-20 %).
+WARM_START_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-3, "warm_start_slack_bound_push": 1e-3,
+                      "warm_start_mult_bound_push": 1e-3, "mu_init": 1e-2}
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
 
@@ -341,8 +346,10 @@ class NlpSolver:
         else:  # library mode: the interval functions in the graph are already compiled externals
             self._source = nlp
             self.derivatives = (derivatives(nlp) if derivatives is not None else None) or {}
-        #: one IPOPT instance per iteration limit (IPOPT options are fixed per instance)
-        self._solvers: dict[int, ca.Function] = {}
+        #: one IPOPT instance per iteration limit and warm start (IPOPT options are fixed per instance)
+        self._solvers: dict[tuple[int, bool], ca.Function] = {}
+        #: per iteration limit, the instance of the last solve (warm-started or not)
+        self._last: dict[int, ca.Function] = {}
         self._solver()
         self.build_time_s = time.perf_counter() - t0
 
@@ -350,18 +357,22 @@ class NlpSolver:
         """CasADi's statistics of the last solve with this iteration limit: IPOPT's per-iteration
         record (``stats()["iterations"]``: inf_pr, inf_du, mu, regularization_size, alpha_pr, ...)
         and the timings (``t_wall_nlp_hess_l``, ...)."""
-        return self._solver(max_iter).stats()
+        key = int(self.options.max_iter if max_iter is None else max_iter)
+        return self._last.get(key, self._solver(max_iter)).stats()
 
     def converged(self, status: str) -> bool:
         """Whether IPOPT's ``status`` counts as converged under these options."""
         return status in CONVERGED_STATUSES or (self.options.accept_acceptable and status == "Solved_To_Acceptable_Level")
 
-    def _solver(self, max_iter: int | None = None) -> ca.Function:
-        """The IPOPT instance with iteration limit ``max_iter`` (default: the options')."""
-        key = int(self.options.max_iter if max_iter is None else max_iter)
+    def _solver(self, max_iter: int | None = None, warm_start: bool = False) -> ca.Function:
+        """The IPOPT instance with iteration limit ``max_iter`` (default: the options'), with
+        :data:`WARM_START_OPTIONS` if ``warm_start``."""
+        key = (int(self.options.max_iter if max_iter is None else max_iter), bool(warm_start))
         if key not in self._solvers:
             opts = self.options.ipopt_options()
-            opts["ipopt"]["max_iter"] = key
+            opts["ipopt"]["max_iter"] = key[0]
+            if warm_start:
+                opts["ipopt"].update(WARM_START_OPTIONS)
             self._solvers[key] = ca.nlpsol(self._name, "ipopt", self._source, {**opts, **self.derivatives})
         return self._solvers[key]
 
@@ -393,6 +404,7 @@ class NlpSolver:
         lam_x0: np.ndarray | None = None,
         lam_g0: np.ndarray | None = None,
         max_iter: int | None = None,
+        warm_start: bool = False,
     ) -> NlpResult:
         """Solve with parameters ``p`` from the initial guess ``x0`` (and multipliers, if given).
 
@@ -401,6 +413,8 @@ class NlpSolver:
             x0: initial guess, shape (n_x,) in Opti's variable order.
             lam_x0, lam_g0: initial multipliers (e.g. from a previous solve) for warm starts.
             max_iter: iteration limit of this solve (default: the options').
+            warm_start: IPOPT starts from ``x0`` and the multipliers (:data:`WARM_START_OPTIONS`);
+                without it IPOPT uses only ``x0``.
         """
         lbx, ubx, lbg, ubg = self.bounds(p)
         x0 = np.clip(np.asarray(x0, dtype=float).reshape(-1), lbx, ubx)
@@ -410,7 +424,8 @@ class NlpSolver:
         if lam_g0 is not None:
             args["lam_g0"] = lam_g0
         t0 = time.perf_counter()
-        solver = self._solver(max_iter)
+        solver = self._solver(max_iter, warm_start and lam_x0 is not None and lam_g0 is not None)
+        self._last[int(self.options.max_iter if max_iter is None else max_iter)] = solver
         sol = solver(**args)
         wall = time.perf_counter() - t0
         stats = solver.stats()

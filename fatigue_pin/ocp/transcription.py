@@ -733,6 +733,7 @@ class Ocp:
         weights: Mapping[str, float] | np.ndarray | None = None,
         max_iter: int | None = None,
         fatigue: np.ndarray | None = None,
+        warm_start: bool = False,
     ) -> OcpSolution:
         """Solve the OCP.
 
@@ -744,6 +745,8 @@ class Ocp:
             weights: cost weights of this solve, by name or as a vector (default: the problem's).
             max_iter: IPOPT iteration limit of this solve (default: the solver options').
             fatigue: fatigue parameters of this solve (n_params,) (default: the actuators').
+            warm_start: IPOPT starts from ``guess`` and ``warm``'s multipliers
+                (:data:`~fatigue_pin.ocp.solver.WARM_START_OPTIONS`; :mod:`fatigue_pin.ocp.warm`).
 
         Returns:
             An :class:`OcpSolution`; check ``success`` before using it as optimal.
@@ -754,7 +757,8 @@ class Ocp:
         w = self.weight_vector(weights)
         p = self.parameter_vector(x_init, x_end, w, fatigue)
         z0 = self.flatten(*guess)
-        res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None, max_iter=max_iter)
+        res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None, max_iter=max_iter,
+                             warm_start=warm_start)
         x, u = self.unflatten(res.x)
         return OcpSolution(
             t=self.t.copy(), x=x, u=u, layout=self.layout, actuator_names=self.actuators.half_names,
