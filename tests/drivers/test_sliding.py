@@ -187,3 +187,54 @@ def test_copied_fatigue_guess_jumps_back_at_cycle_boundaries(small_problem, smal
     np.testing.assert_array_equal(guesses["copy"][1], guesses["integrate"][1])
     with pytest.raises(Exception, match="guess_fatigue"):
         SlidingSettings(guess_fatigue="verbatim")
+
+
+def test_real_time_factor_of_every_window_and_the_runs_median(full_run, runner):
+    """Seconds of solving per second of motion advanced: a window's wall time over A cycles."""
+    from fatigue_pin.drivers.sliding import real_time_factors
+
+    run, _ = full_run
+    advanced = runner.sliding.advance * runner.ocp.task.cycle_duration
+    factors = real_time_factors(run.windows, advanced)
+    assert np.allclose(factors, run.windows["wall_time_s"] / advanced)
+    assert run.attrs["median_real_time_factor"] == pytest.approx(float(np.median(factors)))
+    lines = []
+    runner.run(None, progress=lines.append, stop_after=1)
+    assert "real-time factor" in lines[0] and lines[-1].startswith("median real-time factor")
+
+
+def test_warm_started_windows_reach_the_cold_windows_optima(small_problem, small_study, full_run):
+    """``warm_start``: the windows after the first start from the previous one shifted; they
+    converge to the same optima as cold-started windows (objective 1e-6 relative)."""
+    cold, _ = full_run
+    warm = SlidingHorizon(small_problem, SlidingSettings(window=3, advance=1, max_cycles=5, warm_start=True),
+                          small_study.transcription(), small_study.solver()).run(None)
+    assert warm.windows["converged"].all() and len(warm.windows) == len(cold.windows)
+    assert np.allclose(warm.windows["objective"], cold.windows["objective"], rtol=1e-6)
+    assert np.abs(warm.q - cold.q).max() < 1e-3
+
+
+def test_shift_maps_move_every_variable_and_row_by_the_advance(runner):
+    """The shifted start of a window: the state at node k is the previous solution's at node
+    k + A n (the last A cycles repeat the last cycle), and each rigid-body gap row's multiplier
+    is the one of the same gap A n intervals later."""
+    from fatigue_pin.ocp.warm import shift_maps, shifted
+
+    ocp = runner.ocp
+    n, N, L = ocp.task.intervals_per_cycle, ocp.n_intervals, ocp.layout
+    x_map, g_map = shift_maps(ocp, 1)
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=ocp.nlp.n_x)
+    x, u = ocp.unflatten(z)
+    xs, us = ocp.unflatten(shifted(z, x_map))
+    assert np.array_equal(xs[: N + 1 - n], x[n:]) and np.array_equal(xs[N + 1 - n :], x[N + 1 - n :])
+    assert np.array_equal(us[: N - n], u[n:]) and np.array_equal(us[N - n :], u[N - n :])
+    assert (g_map >= 0).all()  # every row has a counterpart
+    lam = np.arange(ocp.nlp.n_g, dtype=float)
+    moved = shifted(lam, g_map)
+    # g starts with the torque rows T_k = tau_plus_k + tau_minus_k, nv per interval: a shift of
+    # one cycle takes each from the row nv n further on, the last cycle's from themselves
+    nv = L.nv
+    assert ocp.transcription.torque_variable
+    assert np.array_equal(moved[: nv * (N - n)], lam[: nv * (N - n)] + nv * n)
+    assert np.array_equal(moved[nv * (N - n) : nv * N], lam[nv * (N - n) : nv * N])
