@@ -54,7 +54,7 @@ CHILD = textwrap.dedent(
         say("IO " + tag)
         time.sleep(PAUSE)
 
-    real_clone, real_compact, real_fsync, real_replace, real_group = R._clone, R._compact, R._fsync, os.replace, R._write_run
+    real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, R.fsync, os.replace, R._write_run
 
     def clone(src, dst):
         announce("copy")
@@ -78,7 +78,7 @@ CHILD = textwrap.dedent(
         announce("rename")
         real_replace(a, b)
 
-    R._clone, R._compact, R._write_run, R._fsync, os.replace = clone, compact, group, fsync, replace
+    R.clone, R._compact, R._write_run, R.fsync, os.replace = clone, compact, group, fsync, replace
 
     def wrote(module, name, tag):
         real = getattr(module, name)
