@@ -19,7 +19,11 @@ Layout (``docs/results.md``)::
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
-    /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
+    /search/<table>                  max-cycles searches (fatigue_pin.drivers.search), one row per solve:
+                                     n_cycles, converged, status, iterations, wall_time_s, kind
+                                     (how it ended), guess (what started it), constraint_violation;
+                                     attributes: run (the best run's name), max_cycles, the labels
+    /searched/<table>/N<n>           the converged solution of every N the search tried
 
 The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
 run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
