@@ -109,7 +109,7 @@ def test_gauss_newton_hessian_drops_only_the_rigid_body_curvature(arm26):
     rb_rows = np.flatnonzero(np.asarray(ca.DM(ca.jacobian(ca.graph_substitute(g, [call.out], [S]), S).sparsity(), 1)).sum(axis=1))
     assert rb_rows.size == call.out.numel()
     rng = np.random.default_rng(3)
-    z = gn.flatten(*gn.rest_guess()) + 0.3 * rng.normal(size=gn.nlp.n_x)
+    z = gn.flatten(*rest_guess(gn)) + 0.3 * rng.normal(size=gn.nlp.n_x)
     p, lam_f, lam_g = gn.parameter_vector(), 0.7, rng.normal(size=gn.nlp.n_g)
     kept = lam_g.copy()
     kept[rb_rows] = 0.0
