@@ -34,7 +34,7 @@ from fatigue_pin.drivers.full import OcpBuilder, run_attributes, to_run_result
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.io.results import FAILED_WINDOW_SUFFIX, WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
 from fatigue_pin.ocp.solver import SolverOptions
-from fatigue_pin.ocp.transcription import Transcription
+from fatigue_pin.ocp.transcription import Ocp, Transcription
 
 from fatigue_pin.core.progress import Progress, as_reporter
 
@@ -105,6 +105,38 @@ def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
     return settings.advance * (converged_windows - 1) + settings.window
 
 
+def shifted_guess(ocp: Ocp, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray, shift: int,
+                  guess_fatigue: str = "integrate", fatigue: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Guess of a window that starts ``shift`` intervals after the previous one, from the previous
+    window's states (K n + 1, nx) and controls (K n, nu).
+
+    The n intervals of the previous window that start at interval ``shift`` (or whole cycles
+    earlier, when fewer than n remain) are copied into every cycle, so the guess has the new
+    window's phase; with ``guess_fatigue = "integrate"`` the fatigue states are integrated from
+    ``x_init``'s under the copied controls (parameters ``fatigue``, default the actuators'), with
+    ``"copy"`` they are copied too. ``shift = A n`` is the sliding horizon's guess (cycle A copied).
+    """
+    n, K = ocp.task.intervals_per_cycle, ocp.n_cycles
+    start = shift - n * max(0, -(-(shift - (K - 1) * n) // n))  # at most (K - 1) n, same phase
+    u = np.tile(u_prev[start : start + n], (K, 1))
+    xs = np.vstack([np.tile(x_prev[start : start + n], (K, 1)), x_prev[start + n][None, :]])
+    if guess_fatigue == "copy":
+        return xs, u
+    L = ocp.layout
+    return ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u, fatigue), u
+
+
+def iteration_limit(converged_iterations: list[int], settings: SlidingSettings, max_iter: int) -> int | None:
+    """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
+    iterations of the first ``warmup`` converged windows (``converged_iterations``, in order;
+    fixed once known, so a resumed run uses the same limit), at least ``min_iterations``, at most
+    ``max_iter``; ``None`` before ``warmup`` windows converged."""
+    iters = converged_iterations[: settings.warmup]
+    if settings.failure_iterations is None or len(iters) < settings.warmup:
+        return None
+    return int(min(max_iter, max(settings.min_iterations, settings.failure_iterations * float(np.median(iters)))))
+
+
 def failed_window_name(name: str) -> str:
     """Run name of the failed window of the sliding run ``name`` (its last IPOPT iterate)."""
     return f"{name}{FAILED_WINDOW_SUFFIX}"
@@ -158,26 +190,10 @@ class SlidingHorizon:
     def window_guess(self, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Guess of a window from the previous window's states (K n + 1, nx) and controls (K n, nu):
         its cycle A copied into every cycle, fatigue states integrated from ``x_init``."""
-        n, A, K = self._n, self.sliding.advance, self.sliding.window
-        cyc = min(A, K - 1)
-        u_cycle = u_prev[cyc * n : (cyc + 1) * n]
-        x_cycle = x_prev[cyc * n : (cyc + 1) * n]
-        u = np.tile(u_cycle, (K, 1))
-        xs = np.vstack([np.tile(x_cycle, (K, 1)), x_prev[(cyc + 1) * n][None, :]])
-        if self.sliding.guess_fatigue == "copy":
-            return xs, u
-        L = self.ocp.layout
-        return self.ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u), u
+        return shifted_guess(self.ocp, x_init, x_prev, u_prev, self.sliding.advance * self._n, self.sliding.guess_fatigue)
 
     def _iteration_limit(self, state: _State) -> int | None:
-        """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
-        iterations of the first ``warmup`` converged windows (fixed once known, so a resumed run
-        uses the same limit), at least ``min_iterations``."""
-        s = self.sliding
-        iters = [row[4] for row in state.windows if row[3]][: s.warmup]
-        if s.failure_iterations is None or len(iters) < s.warmup:
-            return None
-        return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+        return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)
 
     def _failed_window(self, sol: Any, first_cycle: int, name: str) -> RunResult:
         """The last iterate of a failed window as a run (times from the window's first cycle)."""

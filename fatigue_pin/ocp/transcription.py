@@ -635,14 +635,16 @@ class Ocp:
 
     # -- initial guess ------------------------------------------------------------------------------
 
-    def rollout_fatigue(self, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, u: np.ndarray) -> np.ndarray:
+    def rollout_fatigue(self, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, u: np.ndarray,
+                        fatigue: np.ndarray | None = None) -> np.ndarray:
         """States (N+1, nx) from given q, qdot and controls, with the fatigue states integrated
-        forward from ``x_init``'s through the interval function, so that they are continuous."""
+        forward from ``x_init``'s through the interval function, so that they are continuous
+        (``fatigue``: the fatigue parameters (n_params,); default the actuators')."""
         N, L = self.n_intervals, self.layout
         x = np.zeros((N + 1, L.nx))
         x[:, L.q], x[:, L.v] = q, qdot
         x[0, L.m] = x_init[L.m]
-        p = self.actuators.param_vector()
+        p = self.actuators.param_vector() if fatigue is None else np.asarray(fatigue, dtype=float)
         for k in range(N):
             m = np.asarray(self.functions.F_fatigue(x[k, L.m], u[k], p)).reshape(-1)
             x[k + 1, L.m] = np.clip(m, 0.0, 1.0)
