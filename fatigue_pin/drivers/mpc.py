@@ -61,6 +61,9 @@ class MpcSettings:
         probe_every: cycles between capacity probes (>= 1).
         target_tolerance: a cycle is achieved when the plant meets every task target within
             this (rad for joint targets, the constraint's unit for frame targets).
+        capacity_margin: the controller plans as if every half were this much more fatigued
+            than estimated (mf + margin, and mr - margin where the model has mr): a back-off
+            that keeps a plan within the plant's capacity despite estimation errors (0: none).
         mhe: settings of the moving-horizon estimator.
     """
 
@@ -68,6 +71,7 @@ class MpcSettings:
     estimator: str = "open-loop"
     probe_every: int = 1
     target_tolerance: float = 0.05
+    capacity_margin: float = 0.0
     mhe: MheSettings = field(default_factory=MheSettings)
 
     def __post_init__(self) -> None:
@@ -82,6 +86,9 @@ class MpcSettings:
         tol = self.target_tolerance
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not math.isfinite(tol) or tol < 0:
             raise ParameterError(f"mpc.target_tolerance = {tol!r}: expected a tolerance >= 0")
+        c = self.capacity_margin
+        if isinstance(c, bool) or not isinstance(c, (int, float)) or not 0 <= c < 1:
+            raise ParameterError(f"mpc.capacity_margin = {c!r}: expected a fraction of the capacity in [0, 1)")
         if not isinstance(self.mhe, MheSettings):
             raise ParameterError(f"mpc.mhe = {self.mhe!r}: expected MheSettings")
 
@@ -150,7 +157,8 @@ class LoopState:
     Attributes:
         x: plant states at every node reached, each (nx,).
         y: measured (q, qdot) at every node, each (nq + nv,).
-        prediction: the controller's predicted state at every node (from the plan in force).
+        prediction: the controller's predicted state at every node: that of the plan whose
+            control led there (at node 0 the measured state and the estimate).
         history: what the estimator knows (estimates, commanded and delivered torques, probes).
         replans: rows of :data:`REPLAN_DTYPE`.
         params: estimated fatigue parameters after every re-plan's correction, each (n_params,).
@@ -240,6 +248,22 @@ class ClosedLoop:
 
     # -- one re-plan -----------------------------------------------------------------------------
 
+    def planned_fatigue(self, m: np.ndarray) -> np.ndarray:
+        """The fatigue states a window starts from: the estimate ``m`` (n_states,) with the
+        capacity margin moved from mr to mf."""
+        margin = self.mpc.capacity_margin
+        if margin == 0:
+            return m
+        acts = self.problem.actuators
+        out = m.copy()
+        for h, rows in zip(acts.halves, zip(acts.fatigued_rows(), acts.state_rows("mr"))):
+            fatigued, rest = rows
+            shift = min(margin, 1.0 - out[fatigued]) if rest is None else min(margin, 1.0 - out[fatigued], out[rest])
+            out[fatigued] += shift
+            if rest is not None:
+                out[rest] -= shift
+        return out
+
     def replan(self, state: LoopState, estimator) -> Any:
         """Correct the estimate at the current node and solve the window from it; update
         ``state`` (its table, parameters, plan and ``done``). Returns the solution (None when the
@@ -248,7 +272,7 @@ class ClosedLoop:
         m = np.clip(estimator.correct(k, state.history), 0.0, 1.0)
         state.history.m[-1] = m
         est_time = getattr(estimator, "last_wall_time_s", 0.0)
-        x_init = np.concatenate([state.y[-1], m])
+        x_init = np.concatenate([state.y[-1], self.planned_fatigue(m)])
         ocp = self.window_ocp(k)
         if state.plan is None:
             guess = ocp.initial_guess(x_init)
@@ -269,7 +293,6 @@ class ClosedLoop:
         state.params.append(np.asarray(estimator.params, dtype=float).copy())
         if success:
             state.plan = (sol.x, sol.u, k)
-            state.prediction[-1] = sol.x[0]
         else:
             state.done = True
         max_cycles = self.sliding.max_cycles
