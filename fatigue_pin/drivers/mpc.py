@@ -17,7 +17,8 @@ plant's own problem) and the *estimator* (:mod:`fatigue_pin.drivers.estimation`)
 A window that starts mid-cycle (r not a multiple of n) uses the task shifted by its phase
 (:func:`phase_shifted`); one OCP per phase, sharing the interval functions. The controller stops
 re-planning when a window fails or once its plans reach ``max_cycles`` (the sliding horizon's
-rules), and the plant then runs out the last converged plan. With the plant equal to the model,
+rules), and the plant then runs out the last converged plan; the run also ends when the plant
+leaves the model's joint or velocity bounds. With the plant equal to the model,
 no noise and r = A n, the plant therefore follows the sliding-horizon run.
 
 The plant's *repetitions* are its leading cycles whose task error (:func:`task_errors`) is at
@@ -42,6 +43,9 @@ from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
 from fatigue_pin.ocp.transcription import Ocp, Transcription
+
+#: How far (rad, rad/s) the plant may be outside the model's bounds before the run ends.
+BOUND_TOLERANCE = 1e-6
 
 #: Table of the re-plans of a closed-loop run.
 REPLAN_DTYPE = np.dtype([
@@ -321,7 +325,18 @@ class ClosedLoop:
         state.prediction.append(x_plan[j + 1].copy())
         if (k + 1) % (self.mpc.probe_every * self.n) == 0:
             h.probes[k + 1] = self.plant.probe(x_next, k + 1)
+        if not self.within_bounds(x_next):  # the plant hit a joint or velocity limit: the run ends
+            state.plan, state.done = None, True
         return True
+
+    def within_bounds(self, x: np.ndarray) -> bool:
+        """Whether the plant's q and qdot are finite and within the model's bounds (+- 1e-6, the
+        solver's bounds hold up to its bound relaxation)."""
+        L, m = self.problem.layout, self.problem.model
+        lo = np.concatenate([m.q_lower, m.v_lower]) - BOUND_TOLERANCE
+        hi = np.concatenate([m.q_upper, m.v_upper]) + BOUND_TOLERANCE
+        y = x[: L.nq + L.nv]
+        return bool(np.all(np.isfinite(y)) and np.all(y >= lo) and np.all(y <= hi))
 
     def run(self, state: LoopState | None = None, checkpoint: Callable[[LoopState], None] | None = None,
             progress: Progress = None, stop_after: int | None = None) -> LoopState:
