@@ -19,3 +19,8 @@ class DimensionError(FatiguePinError, ValueError):
 
 class TaskError(FatiguePinError, ValueError):
     """A task that cannot be posed on the model (unknown joint, target outside the joint range, ...)."""
+
+
+class ResultFileError(FatiguePinError, ValueError):
+    """A result file or run that cannot be read or written (missing, damaged, foreign, newer
+    layout, no room, ...)."""

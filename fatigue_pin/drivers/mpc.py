@@ -38,7 +38,8 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.estimation import ESTIMATORS, History, MheSettings, make_estimator
 from fatigue_pin.drivers.plant import Plant, PlantSettings
-from fatigue_pin.drivers.sliding import SlidingSettings, iteration_limit, shifted_guess
+from fatigue_pin.drivers.sliding import SlidingSettings, iteration_limit
+from fatigue_pin.ocp.guesses import shifted_window_guess
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
@@ -282,7 +283,8 @@ class ClosedLoop:
             guess = ocp.initial_guess(x_init)
         else:
             x_prev, u_prev, start = state.plan
-            guess = shifted_guess(ocp, x_init, x_prev, u_prev, k - start, self.sliding.guess_fatigue, estimator.params)
+            guess = shifted_window_guess(ocp, x_init, x_prev, u_prev, 0, self.sliding.guess_fatigue == "copy",
+                                         intervals=k - start, fatigue=estimator.params)
         limit = iteration_limit([int(r[5]) for r in state.replans if r[4]], self.sliding, self.solver.max_iter)
         lo, hi = ocp.state_bounds(x_init, x_init)
         if np.any(lo > hi):  # the plant left the model's bounds: no window can start there

@@ -19,6 +19,7 @@ Layout (``docs/results.md``)::
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
+        extras/<name>                      further arrays of a driver (closed loop: docs/mpc.md)
     /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
 
 The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
@@ -41,137 +42,30 @@ import json
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
 
 import h5py
 import numpy as np
 
-from fatigue_pin.core.errors import FatiguePinError
-
-#: Attributes every run group carries.
-RUN_ATTRIBUTES = (
-    "horizon", "n_cycles", "converged", "status", "wall_time_s", "build_time_s", "iterations", "solver", "model",
-    "weights", "fatigue_params",
+from fatigue_pin.core.errors import ResultFileError
+from fatigue_pin.drivers.run import (
+    FAILED_WINDOW_SUFFIX,
+    RUN_ATTRIBUTES,
+    SEARCH_DTYPE,
+    WINDOW_DTYPE,
+    RunResult,
+    torque_limits_at_cycle_ends,
 )
+
+__all__ = [
+    "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
+    "check_output", "check_output_dir", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
+    "write_run", "write_search",
+]
+
 #: Fatigue states of files written before the layout named them (Xia's model).
 LEGACY_FATIGUE_STATES = ("ma", "mr", "mf")
-
-WINDOW_DTYPE = np.dtype([
-    ("index", "i4"), ("first_cycle", "i4"), ("status", "S40"), ("converged", "?"),
-    ("iterations", "i4"), ("wall_time_s", "f8"), ("objective", "f8"),
-])
-
-SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40"), ("iterations", "i4"), ("wall_time_s", "f8"),
-                         ("kind", "S24"), ("guess", "S24"), ("constraint_violation", "f8")])
-
-
-class ResultFileError(FatiguePinError, ValueError):
-    """A result file or run that cannot be read."""
-
-
-@dataclass
-class RunResult:
-    """One OCP run (full horizon, or sliding horizon stitched from its windows).
-
-    Shapes: nodes = n_cycles * intervals_per_cycle + 1, intervals = nodes - 1, halves = 2 nv.
-
-    Attributes:
-        name: group name in the file.
-        attrs: run attributes (see :data:`RUN_ATTRIBUTES`; more may be present).
-        t: node times (s), (nodes,).
-        q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
-        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv).
-        fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
-            the columns of halves whose model has no such state.
-        cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
-        torque_limits: available torque (1 - mf) * tau_limit of every half at the end of each
-            cycle (N m, signed like the half), (cycles, halves).
-        joint_names, actuator_names, cost_terms: labels of the columns.
-        cycle_wall_time_s: solve time attributed to each cycle (s), (cycles,).
-        windows: sliding-horizon window table (structured, :data:`WINDOW_DTYPE`), or None.
-        urdf: the model's URDF text (so the file reproduces itself), or "".
-        study: the TOML text of the study that produced the run, or "" (built in Python).
-        fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
-    """
-
-    name: str
-    attrs: dict[str, Any]
-    t: np.ndarray
-    q: np.ndarray
-    qdot: np.ndarray
-    tau_plus: np.ndarray
-    tau_minus: np.ndarray
-    fatigue: dict[str, np.ndarray]
-    cycle_costs: np.ndarray
-    torque_limits: np.ndarray
-    joint_names: tuple[str, ...]
-    actuator_names: tuple[str, ...]
-    cost_terms: tuple[str, ...]
-    cycle_wall_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    windows: np.ndarray | None = None
-    urdf: str = ""
-    study: str = ""
-    fatigued: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        if self.fatigued is None:
-            self.fatigued = self.fatigue.get("mf")
-
-    @property
-    def fatigue_states(self) -> tuple[str, ...]:
-        return tuple(self.fatigue)
-
-    def state(self, name: str) -> np.ndarray:
-        """Fatigue state ``name`` of every half, (nodes, halves)."""
-        if name not in self.fatigue:
-            raise ResultFileError(f"run {self.name!r} has no fatigue state {name!r}; its states are {list(self.fatigue)}")
-        return self.fatigue[name]
-
-    @property
-    def ma(self) -> np.ndarray:
-        return self.state("ma")
-
-    @property
-    def mr(self) -> np.ndarray:
-        return self.state("mr")
-
-    @property
-    def mf(self) -> np.ndarray:
-        return self.state("mf")
-
-    @property
-    def n_cycles(self) -> int:
-        return int(self.cycle_costs.shape[0])
-
-    @property
-    def converged(self) -> bool:
-        return bool(self.attrs.get("converged", False))
-
-    @property
-    def intervals_per_cycle(self) -> int:
-        return (self.t.size - 1) // max(self.n_cycles, 1)
-
-    def invariant_error(self) -> np.ndarray:
-        """|1 - (sum of the fatigue states)| of every half at every node, (nodes, halves) (for
-        Xia's model |1 - (ma + mr + mf)|; states a half lacks count as 0)."""
-        total = sum(np.nan_to_num(v) for v in self.fatigue.values())
-        return np.abs(1.0 - total)
-
-    def cycle_slice(self, cycle: int) -> slice:
-        """Node slice of cycle ``cycle`` (0-based), both ends included."""
-        n = self.intervals_per_cycle
-        if not 0 <= cycle < self.n_cycles:
-            raise ResultFileError(f"cycle {cycle} is out of range: run {self.name!r} has cycles 0..{self.n_cycles - 1}")
-        return slice(cycle * n, (cycle + 1) * n + 1)
-
-
-def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, intervals_per_cycle: int) -> np.ndarray:
-    """(1 - mf) * limit at nodes n, 2n, ..., shape (cycles, halves); ``signed_limits`` (halves,)."""
-    ends = np.arange(intervals_per_cycle, mf.shape[0], intervals_per_cycle)
-    return (1.0 - mf[ends]) * np.asarray(signed_limits)[None, :]
-
 
 def _as_attr(value: Any) -> Any:
     if value is None:
@@ -204,6 +98,11 @@ def _write_run(group: h5py.Group, run: RunResult) -> None:
     group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
     if run.windows is not None:
         group.create_dataset("windows", data=np.asarray(run.windows, dtype=WINDOW_DTYPE))
+    if run.extras:
+        extras = group.create_group("extras")
+        for name, value in run.extras.items():
+            data = np.asarray(value)
+            extras.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
 
 
 def _str_list(values: Any) -> tuple[str, ...]:
@@ -235,7 +134,8 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         windows=group["windows"][()] if "windows" in group else None,
         urdf=str(group.attrs.get("urdf", "")),
         study=_text(group.attrs.get("study", "")),
-        fatigued=group["fatigued"][()] if "fatigued" in group else None,
+        fatigued=group["fatigued"][()] if "fatigued" in group else group["mf"][()],  # before "fatigued": Xia's mf
+        extras={k: v[()] for k, v in group["extras"].items()} if "extras" in group else {},
     )
 
 
@@ -420,7 +320,8 @@ def write_run(path: str | Path, run: RunResult) -> Path:
     def fill(h5: h5py.File) -> None:
         _write_run(h5.create_group(run.name), run)
 
-    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values()]
+    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values(),
+              *run.extras.values()]
     size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
     _atomic_rewrite(Path(path), {run.name}, fill, new_bytes=size)
     return Path(path)
@@ -559,11 +460,6 @@ def _run_names(h5: h5py.File) -> list[str]:
     return sorted(names)
 
 
-#: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
-#: ``sliding/torque_S0_failed_window``.
-FAILED_WINDOW_SUFFIX = "_failed_window"
-
-
 def _main_runs(names: list[str]) -> list[str]:
     """``names`` without the failed windows of sliding runs."""
     return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
@@ -627,3 +523,29 @@ def config_json(obj: Any) -> str:
         return repr(o)
 
     return json.dumps(obj, default=default, sort_keys=True)
+
+
+class ResultFile:
+    """An HDF5 result file as the :class:`~fatigue_pin.drivers.run.RunStore` of a driver: every
+    write is atomic (see :func:`write_run`)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    def runs(self) -> list[str]:
+        return list_runs(self.path, failed_windows=True) if self.path.exists() else []
+
+    def read(self, name: str) -> RunResult:
+        return read_run(self.path, name)
+
+    def write(self, run: RunResult) -> None:
+        write_run(self.path, run)
+
+    def tables(self) -> dict[str, np.ndarray]:
+        return read_search(self.path) if self.path.exists() else {}
+
+    def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
+        write_search(self.path, name, rows, attrs)
+
+    def __repr__(self) -> str:
+        return f"ResultFile({str(self.path)!r})"
