@@ -18,8 +18,9 @@ A window that starts mid-cycle (r not a multiple of n) uses the task shifted by 
 (:func:`phase_shifted`); one OCP per phase, sharing the interval functions. The controller stops
 re-planning when a window fails or once its plans reach ``max_cycles`` (the sliding horizon's
 rules), and the plant then runs out the last converged plan; the run also ends when the plant
-leaves the model's joint or velocity bounds. With the plant equal to the model,
-no noise and r = A n, the plant therefore follows the sliding-horizon run.
+leaves the model's joint range (a joint stop). With the plant equal to the model, no noise and
+r = A n, the plant therefore follows the sliding-horizon run. With ``end = "receding"`` the
+controller instead re-plans until the plant has done ``max_cycles`` cycles (no open-loop tail).
 
 The plant's *repetitions* are its leading cycles whose task error (:func:`task_errors`) is at
 most ``target_tolerance``.
@@ -45,8 +46,11 @@ from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
 from fatigue_pin.ocp.transcription import Ocp, Transcription
 
-#: How far (rad, rad/s) the plant may be outside the model's bounds before the run ends.
+#: How far (rad) the plant's q may be outside the model's joint range before the run ends.
 BOUND_TOLERANCE = 1e-6
+
+#: How max_cycles ends a closed loop (:attr:`MpcSettings.end`).
+MPC_ENDS = ("run-out", "receding")
 
 #: Table of the re-plans of a closed-loop run.
 REPLAN_DTYPE = np.dtype([
@@ -69,6 +73,10 @@ class MpcSettings:
         capacity_margin: the controller plans as if every half were this much more fatigued
             than estimated (mf + margin, and mr - margin where the model has mr): a back-off
             that keeps a plan within the plant's capacity despite estimation errors (0: none).
+        end: how ``max_cycles`` ends the run: ``run-out`` (the sliding horizon's rule: no
+            re-plan once the plans reach ``max_cycles``; the plant runs out the last plan, open
+            loop) or ``receding`` (re-plan every ``replan_every`` intervals until the plant has
+            done ``max_cycles`` cycles; the windows look past it).
         mhe: settings of the moving-horizon estimator.
     """
 
@@ -77,6 +85,7 @@ class MpcSettings:
     probe_every: int = 1
     target_tolerance: float = 0.05
     capacity_margin: float = 0.0
+    end: str = "run-out"
     mhe: MheSettings = field(default_factory=MheSettings)
 
     def __post_init__(self) -> None:
@@ -94,8 +103,16 @@ class MpcSettings:
         c = self.capacity_margin
         if isinstance(c, bool) or not isinstance(c, (int, float)) or not 0 <= c < 1:
             raise ParameterError(f"mpc.capacity_margin = {c!r}: expected a fraction of the capacity in [0, 1)")
+        if self.end not in MPC_ENDS:
+            raise ParameterError(f"mpc.end = {self.end!r}: expected one of {list(MPC_ENDS)}")
         if not isinstance(self.mhe, MheSettings):
             raise ParameterError(f"mpc.mhe = {self.mhe!r}: expected MheSettings")
+
+
+def _structure(problem: Problem) -> tuple:
+    """What a plant must share with the model: joints, halves and their fatigue states."""
+    return (problem.model.joint_names, problem.model.nq, problem.actuators.half_names,
+            tuple(h.params.state_names for h in problem.actuators.halves))
 
 
 def phase_shifted(problem: Problem, shift: int) -> Problem:
@@ -222,7 +239,7 @@ class ClosedLoop:
         if self.replan_every > self.H:
             raise ParameterError(f"mpc.replan_every = {self.replan_every}: expected at most the window, "
                                  f"{self.sliding.window} cycles x {self.n} = {self.H} intervals")
-        if self.plant_problem.layout != problem.layout:
+        if _structure(self.plant_problem) != _structure(problem):
             raise ParameterError("plant: its state layout (joints, actuator halves, fatigue states) differs from the "
                                  "model's; a plant may change parameter values and the payload, not the structure")
         if self.plant_problem.task.dt != task.dt:
@@ -302,7 +319,7 @@ class ClosedLoop:
         else:
             state.done = True
         max_cycles = self.sliding.max_cycles
-        if max_cycles is not None and k + self.H >= max_cycles * self.n:
+        if max_cycles is not None and self.mpc.end == "run-out" and k + self.H >= max_cycles * self.n:
             state.done = True
         return sol
 
@@ -327,18 +344,18 @@ class ClosedLoop:
         state.prediction.append(x_plan[j + 1].copy())
         if (k + 1) % (self.mpc.probe_every * self.n) == 0:
             h.probes[k + 1] = self.plant.probe(x_next, k + 1)
-        if not self.within_bounds(x_next):  # the plant hit a joint or velocity limit: the run ends
+        if not self.within_bounds(x_next):  # the plant hit a joint stop: the run ends
             state.plan, state.done = None, True
         return True
 
     def within_bounds(self, x: np.ndarray) -> bool:
-        """Whether the plant's q and qdot are finite and within the model's bounds (+- 1e-6, the
-        solver's bounds hold up to its bound relaxation)."""
+        """Whether the plant's q and qdot are finite and q is within the model's joint range
+        (+- :data:`BOUND_TOLERANCE`). Velocities may overshoot their bound (an optimisation bound,
+        not a joint stop); a window starting there is posed as long as its end box is not empty."""
         L, m = self.problem.layout, self.problem.model
-        lo = np.concatenate([m.q_lower, m.v_lower]) - BOUND_TOLERANCE
-        hi = np.concatenate([m.q_upper, m.v_upper]) + BOUND_TOLERANCE
         y = x[: L.nq + L.nv]
-        return bool(np.all(np.isfinite(y)) and np.all(y >= lo) and np.all(y <= hi))
+        q = y[: L.nq]
+        return bool(np.all(np.isfinite(y)) and np.all(q >= m.q_lower - BOUND_TOLERANCE) and np.all(q <= m.q_upper + BOUND_TOLERANCE))
 
     def run(self, state: LoopState | None = None, checkpoint: Callable[[LoopState], None] | None = None,
             progress: Progress = None, stop_after: int | None = None) -> LoopState:
@@ -358,6 +375,9 @@ class ClosedLoop:
         replanned = 0
         while True:
             k = state.node
+            if self._plant_done(state):
+                state.done = True
+                break
             if not state.done and k % self.replan_every == 0 and k > state.last_replan:
                 if stop_after is not None and replanned >= stop_after:
                     return state
@@ -376,6 +396,19 @@ class ClosedLoop:
         return state
 
     # -- summaries -------------------------------------------------------------------------------
+
+    def _plant_done(self, state: LoopState) -> bool:
+        """With ``end = "receding"``: whether the plant has done ``max_cycles`` cycles."""
+        max_cycles = self.sliding.max_cycles
+        return self.mpc.end == "receding" and max_cycles is not None and state.node >= max_cycles * self.n
+
+    def finished(self, state: LoopState) -> bool:
+        """Whether the run is over: no more re-plans and no plan left to run out."""
+        if self._plant_done(state):
+            return True
+        if not state.done:
+            return False
+        return state.plan is None or state.node - state.plan[2] >= state.plan[1].shape[0]
 
     def cycles(self, state: LoopState) -> int:
         """Whole cycles the plant has completed."""
