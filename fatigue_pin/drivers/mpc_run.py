@@ -94,6 +94,7 @@ def to_run(loop: ClosedLoop, state: LoopState, name: str, study: str = "", label
         plan_start=-1 if state.plan is None else int(state.plan[2]), fingerprint=fingerprint(loop),
         plant_fatigue_params=json.dumps({hh.name: hh.params.as_dict() for hh in loop.plant_problem.actuators.halves}),
         plant_payload=repr(loop.plant_problem.model.payload), seed=loop.plant_settings.seed,
+        fatigued_rows=np.array(loop.problem.actuators.fatigued_rows()),
     )
     wall = np.zeros(cycles)  # re-plan time attributed to the cycle it started in
     for row in table[table["node"] < end]:
@@ -175,3 +176,39 @@ def run_closed_loop(loop: ClosedLoop, store: RunStore | None = None, name: str =
 
     state = loop.run(state, checkpoint, rep, stop_after)
     return to_run(loop, state, name, study, labels, build)
+
+
+def estimation_error(run: RunResult) -> np.ndarray:
+    """Estimated minus true fatigued fraction of every half at every node the plant reached,
+    (nodes, halves): positive where the controller thought a half more tired than it was."""
+    e = run.extras
+    rows = np.asarray(run.attrs["fatigued_rows"], dtype=int)  # in the fatigue states (n_states,)
+    tail = np.asarray(e["tail_x"])
+    nqv = run.q.shape[1] + run.qdot.shape[1]
+    true = np.vstack([run.fatigued, tail[:, nqv + rows].reshape(-1, rows.size)])
+    return np.asarray(e["estimate"])[:, rows] - true
+
+
+def report(run: RunResult) -> str:
+    """A Markdown report of a closed-loop run: repetitions, task error per cycle, estimation error
+    of mf per half, the real-time factor of every re-plan."""
+    a, e = run.attrs, run.extras
+    lines = [f"# Closed loop {run.name}", "",
+             f"- repetitions achieved by the plant: **{a['repetitions']}** of {run.n_cycles} whole cycles "
+             f"(task error <= {a['target_tolerance']:g})",
+             f"- estimator: {a['estimator']}; re-plan every {a['replan_every']} intervals "
+             f"({a['replan_every'] * a['dt']:g} s); window {a['window']} cycles",
+             f"- re-plans: {len(e['replans'])}; real-time factor median {a['real_time_factor_median']:.2f}, "
+             f"max {a['real_time_factor_max']:.2f}", "", "## Task error per cycle", "", "| cycle | task error |", "|---:|---:|"]
+    lines += [f"| {c + 1} | {err:.3g} |" for c, err in enumerate(e["task_error"])]
+    err = estimation_error(run)
+    lines += ["", "## Estimation error of mf per half (estimate - plant)", "",
+              "| half | mean abs | max abs | at the end |", "|---|---:|---:|---:|"]
+    lines += [f"| {h} | {np.abs(err[:, i]).mean():.3g} | {np.abs(err[:, i]).max():.3g} | {err[-1, i]:+.3g} |"
+              for i, h in enumerate(run.actuator_names)]
+    lines += ["", "## Re-plans", "", "| # | node | phase | status | iterations | solve (s) | estimator (s) | real-time factor |",
+              "|---:|---:|---:|---|---:|---:|---:|---:|"]
+    for r in e["replans"]:
+        lines.append(f"| {r['index']} | {r['node']} | {r['phase']} | {r['status'].decode()} | {r['iterations']} | "
+                     f"{r['wall_time_s']:.3f} | {r['estimator_time_s']:.3f} | {r['real_time_factor']:.2f} |")
+    return "\n".join(lines) + "\n"
