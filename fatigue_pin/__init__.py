@@ -65,6 +65,17 @@ _API: dict[str, str] = {
     "SlidingSettings": "fatigue_pin.drivers.sliding",
     "SlidingHorizon": "fatigue_pin.drivers.sliding",
     "RunResult": "fatigue_pin.drivers.run",
+    # closed loop (docs/mpc.md)
+    "ClosedLoop": "fatigue_pin.drivers.mpc",
+    "MpcSettings": "fatigue_pin.drivers.mpc",
+    "Plant": "fatigue_pin.drivers.plant",
+    "PlantSettings": "fatigue_pin.drivers.plant",
+    "PlantNoise": "fatigue_pin.drivers.plant",
+    "PlantDisturbance": "fatigue_pin.drivers.plant",
+    "MheSettings": "fatigue_pin.drivers.estimation",
+    "run_closed_loop": "fatigue_pin.drivers.mpc_run",
+    "MpcStudy": "fatigue_pin.io.mpc_study",
+    "run_mpc": "fatigue_pin.io.mpc_study",
     # files
     "Study": "fatigue_pin.io.study",
     "StudyError": "fatigue_pin.io.study",
