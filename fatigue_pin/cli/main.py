@@ -157,7 +157,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from fatigue_pin.viz.replay import export_html, serve
+    from fatigue_pin.viz.replay import export_html
+    from fatigue_pin.viz.server import serve
     from fatigue_pin.io.results import ResultFileError, read_run
 
     run = read_run(args.file, args.run)

@@ -24,3 +24,8 @@ class TaskError(FatiguePinError, ValueError):
 class ResultFileError(FatiguePinError, ValueError):
     """A result file or run that cannot be read or written (missing, damaged, foreign, newer
     layout, no room, ...)."""
+
+
+class OutputLocationError(ResultFileError):
+    """An output path that cannot receive files (a file where a folder is expected, a folder that
+    cannot be created or written to, a full disk, a wrong file name)."""

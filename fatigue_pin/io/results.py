@@ -20,7 +20,11 @@ Layout (``docs/results.md``)::
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
         extras/<name>                      further arrays of a driver (closed loop: docs/mpc.md)
-    /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
+    /search/<table>                  max-cycles searches (fatigue_pin.drivers.search), one row per solve:
+                                     n_cycles, converged, status, iterations, wall_time_s, kind
+                                     (how it ended), guess (what started it), constraint_violation;
+                                     attributes: run (the best run's name), max_cycles, the labels
+    /searched/<table>/N<n>           the converged solution of every N the search tried
 
 The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
 run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
@@ -35,20 +39,17 @@ new file, both complete and readable, and a write costs about the same whatever 
 
 from __future__ import annotations
 
-import contextlib
 import errno
-import fcntl
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import h5py
 import numpy as np
 
 from fatigue_pin.core.errors import ResultFileError
+from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
     RUN_ATTRIBUTES,
@@ -178,35 +179,6 @@ def _io_error(path: Path, exc: OSError) -> ResultFileError:
     return ResultFileError(f"cannot write {str(path)!r}: {reason}; the previous file is unchanged")
 
 
-@contextlib.contextmanager
-def _locked(path: Path) -> Iterator[None]:
-    """Hold an exclusive lock on ``path`` (``flock`` of the sidecar ``.<name>.lock``) so that
-    concurrent writers take turns; each re-reads the file under the lock."""
-    lock = path.with_name(f".{path.name}.lock")
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError as exc:  # a file system without locks (some network mounts): write unlocked
-            if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
-                raise
-        yield
-    finally:
-        os.close(fd)  # releases the lock
-
-
-def _clone(src: Path, dst: Path) -> None:
-    """Copy the bytes of ``src`` to ``dst``: a reflink where the file system has them, else a
-    kernel-side copy."""
-    with open(src, "rb") as fin, open(dst, "wb") as fout:
-        try:
-            fcntl.ioctl(fout.fileno(), 0x40049409, fin.fileno())  # FICLONE (btrfs, xfs): instant
-            return
-        except OSError:
-            pass
-    shutil.copyfile(src, dst)  # sendfile / copy_file_range on Linux
-
-
 def _compact(src: Path, dst: Path) -> None:
     """Rewrite ``src`` object by object into a new file at ``dst`` created with :data:`_CREATE`
     (files of layout 1, or written without persistent free-space tracking; once per file),
@@ -240,21 +212,10 @@ def _prepare(path: Path, tmp: Path) -> int | None:
         persistent = bool(old.id.get_create_plist().get_file_space_strategy()[1])
         compacted = int(old.attrs.get("compacted_bytes", 0))
     if layout == LAYOUT and persistent and path.stat().st_size <= 2 * compacted + _COMPACT_SLACK:
-        _clone(path, tmp)
+        clone(path, tmp)
         return None
     _compact(path, tmp)
     return tmp.stat().st_size
-
-
-def _fsync(path: Path, directory: bool = False) -> None:
-    fd = os.open(path, os.O_RDONLY if directory else os.O_RDWR)
-    try:
-        os.fsync(fd)
-    except OSError:
-        if not directory:
-            raise
-    finally:
-        os.close(fd)
 
 
 def _check_room(path: Path, new_bytes: int) -> None:
@@ -289,27 +250,23 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
             the write fails (full disk, permissions), naming the path.
     """
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
+
+    def write(tmp: Path) -> None:
+        compacted = _prepare(path, tmp)
+        with h5py.File(tmp, "a") as h5:
+            if compacted is not None:
+                h5.attrs["compacted_bytes"] = compacted
+            for key in skip:  # run names may be paths such as "sliding/torque_S10"
+                if key in h5:
+                    del h5[key]
+            fill(h5)
+            h5.attrs["format"] = FORMAT
+
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with _locked(path):
+        with locked(path.with_name(f".{path.name}.lock")):
             _check_room(path, new_bytes)
-            try:
-                compacted = _prepare(path, tmp)
-                with h5py.File(tmp, "a") as h5:
-                    if compacted is not None:
-                        h5.attrs["compacted_bytes"] = compacted
-                    for key in skip:  # run names may be paths such as "sliding/torque_S10"
-                        if key in h5:
-                            del h5[key]
-                    fill(h5)
-                    h5.attrs["format"] = FORMAT
-                _fsync(tmp)
-                os.replace(tmp, path)
-                _fsync(path.parent, directory=True)
-            finally:
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
+            atomic_write(path, write, tmp=path.with_name(path.name + ".tmp"))
     except OSError as exc:
         raise _io_error(path, exc) from exc
 
@@ -376,56 +333,9 @@ def check_output(path: str | Path) -> Path:
             raise ResultFileError(f"output {str(path)!r} is not writable")
         size = path.stat().st_size
     folder = path.parent
-    _check_folder(folder, f"output folder {str(folder)!r}")
-    _check_space(folder, size + (64 << 10), f"adding a run to {str(path)!r}")
+    check_folder(folder, f"output folder {str(folder)!r}")
+    check_space(folder, size + (64 << 10), f"adding a run to {str(path)!r}")
     return path
-
-
-def check_output_dir(path: str | Path) -> Path:
-    """Check, before any work, that the folder ``path`` can receive output files: it is a folder
-    (created if missing) that can be written to, on a disk that is not full.
-
-    Raises:
-        ResultFileError: naming the path and what is wrong.
-    """
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise ResultFileError(f"output {str(path)!r} is a file; expected a folder (created if missing)")
-    _check_folder(path, f"output folder {str(path)!r}")
-    _check_space(path, 1 << 20, f"writing to {str(path)!r}")
-    return path
-
-
-def _check_folder(folder: Path, label: str) -> None:
-    """Create ``folder`` if needed and write a small probe file in it."""
-    existing = folder
-    while not existing.exists():
-        existing = existing.parent
-    if not existing.is_dir():
-        raise ResultFileError(f"{label} cannot be created: {str(existing)!r} is not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ResultFileError(f"{label} is not writable; expected a folder you can write to")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_") as probe:
-            probe.write(b"\0" * 4096)
-            probe.flush()
-            os.fsync(probe.fileno())
-    except OSError as exc:
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            raise ResultFileError(f"{label} is on a full disk (no space left on device)") from None
-        raise ResultFileError(f"{label} is not writable: a file cannot be created in it ({exc.strerror or exc})") from None
-
-
-def _check_space(folder: Path, need: int, what: str) -> None:
-    try:
-        st = os.statvfs(folder)
-    except OSError:
-        return
-    free = st.f_bavail * st.f_frsize
-    if free < need:
-        raise ResultFileError(f"the disk of {str(folder)!r} is full: {free // 1024} KiB free; "
-                              f"{what} needs at least {-(-need // 1024)} KiB")
 
 
 def _open(path: str | Path) -> h5py.File:

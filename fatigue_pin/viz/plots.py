@@ -21,18 +21,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-import h5py
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from fatigue_pin.io.results import ResultFileError, RunResult, list_runs, read_run, read_search
-
-if TYPE_CHECKING:
-    from fatigue_pin.paper.forward import ForwardStudiesResult
 
 #: Colours of the fatigue compartments (as in the forward-study figures).
 STATE_COLORS = {"ma": "#00cc96", "mr": "#ffa15a", "mf": "#ef553b"}
