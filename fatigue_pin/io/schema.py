@@ -57,7 +57,7 @@ class Key:
         group: the field of the table's class that gathers it (``keys_of``), or "" (its own field).
         annotation: the field's type.
         default: the default in TOML form (lists for tuples), or :data:`REQUIRED`.
-        expected: what a valid value is (the field's ``expected``, else a phrase of its type).
+        expected: what a valid value is (the field's ``expected``), or "" (the field has none).
     """
 
     name: str
@@ -67,6 +67,11 @@ class Key:
     annotation: Any
     default: Any
     expected: str
+
+    @property
+    def phrase(self) -> str:
+        """What a valid value is: ``expected``, else the type in words."""
+        return self.expected or type_phrase(self.annotation)
 
     @property
     def required(self) -> bool:
@@ -122,7 +127,7 @@ def _table_keys(cls: type, skip: tuple[str, ...], rename_items: tuple[tuple[str,
         name = renames.get(f.name, f.name)
         default = default_value(f)
         keys[name] = Key(name, cls, f.name, "", hints[f.name], REQUIRED if default is REQUIRED else toml_form(default),
-                         expected_of(f) or type_phrase(hints[f.name]))
+                         expected_of(f))
     return keys
 
 
@@ -190,9 +195,9 @@ def fill(cls: type, table: Any, path: str, *, skip: tuple[str, ...] = (), rename
         if name in table:
             value = table[name]
             if _is_number(value) and not math.isfinite(float(value)):
-                raise StudyError(f"{path}.{name} = {value!r}: expected a finite number ({key.expected})")
+                raise StudyError(f"{path}.{name} = {value!r}: expected a finite number" + (f" ({key.expected})" if key.expected else ""))
         elif key.required and name not in optional:
-            raise StudyError(f"missing key {path}.{name}: expected {key.expected}")
+            raise StudyError(f"missing key {path}.{name}: expected {key.phrase}")
         else:
             value = None if key.required else copy.deepcopy(key.default)
         if key.nested is not None and isinstance(value, dict):
@@ -224,13 +229,13 @@ def build(cls: type, values: dict[str, Any], path: str, *, skip: tuple[str, ...]
     try:
         obj = cls(**kwargs)
     except FatiguePinError as exc:
-        raise StudyError(restate(str(exc), path, _owners(cls, keys, renames))) from None
+        raise StudyError(restate(str(exc), path, _owners(cls, keys, renames), values)) from None
     except (TypeError, ValueError, ArithmeticError) as exc:  # a value of a type the validator did not expect
         failure = exc
     for name, value in values.items():
         key = keys[name]
         if value is not None and not type_check(key.annotation)(value):
-            raise StudyError(f"{path}.{name} = {value!r}: expected {key.expected}")
+            raise StudyError(f"{path}.{name} = {value!r}: expected {key.phrase}")
     if failure is not None:
         raise StudyError(f"{path}: {failure}")
     return obj
@@ -258,10 +263,11 @@ def _owners(cls: type, keys: dict[str, Key], renames: dict[str, str] | None) -> 
 _OWNER = re.compile(r"(\w+)(\([^)]*\))?(?:\.(\w+)| (\w+)(?= = ))?")
 
 
-def restate(message: str, path: str, owners: dict[str, dict[str, str]]) -> str:
+def restate(message: str, path: str, owners: dict[str, dict[str, str]], values: dict[str, Any] | None = None) -> str:
     """A validator's message with its owner (``SolverOptions.tol``, ``JointTarget('elbow').at``,
     ``payload mass``) replaced by the study path (``solver.tol``, ``task.targets[1].at``,
-    ``model.payload.mass``), fields named by their keys."""
+    ``model.payload.mass``), fields named by their keys, and the value as the study wrote it
+    (``values``: key -> value) rather than as the class converted it."""
     m = _OWNER.match(message)
     if m and m.group(1).lower() in owners:
         renames = owners[m.group(1).lower()]
@@ -269,9 +275,12 @@ def restate(message: str, path: str, owners: dict[str, dict[str, str]]) -> str:
         rest = message[m.end():]
         for name, new in renames.items():
             rest = re.sub(rf"\b{name} = ", f"{new} = ", rest)
-        if key is not None:
-            return f"{path}.{renames.get(key, key)}{rest}"
-        return f"{path}{rest}"
+        if key is None:
+            return f"{path}{rest}"
+        key = renames.get(key, key)
+        if values is not None and key in values and rest.startswith(" = ") and ": expected" in rest:
+            rest = f" = {values[key]!r}" + rest[rest.index(": expected"):]
+        return f"{path}.{key}{rest}"
     if message.startswith(path.split(".")[0].split("[")[0]):
         return message
     return f"{path}: {message}"
