@@ -22,6 +22,8 @@ import math
 import numbers
 from typing import Any, Callable, Mapping
 
+import numpy as np
+
 from fatigue_pin.core.errors import ParameterError
 
 #: The default of a field that has none (the setting is required).
@@ -59,7 +61,8 @@ def is_number(v: Any) -> bool:
 
 
 def is_bool(v: Any) -> bool:
-    return isinstance(v, bool) or type(v).__name__ == "bool_"  # NumPy's bool
+    """True or False (Python or NumPy)."""
+    return isinstance(v, (bool, np.bool_))
 
 
 def is_str(v: Any) -> bool:

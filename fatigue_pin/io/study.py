@@ -151,9 +151,8 @@ class Study:
         """The :class:`~fatigue_pin.ocp.task.Task` of ``[task]`` (its items built by :func:`~fatigue_pin.io.tables.task_table`)."""
         from fatigue_pin.ocp.task import Task
 
-        values, items = task_table(self.data["task"])
-        own = {k: v for k, v in values.items() if k not in TASK_ARRAYS}
-        return build(Task, own, "task", skip=("items",), items=items)
+        values, items = task_table(self.data["task"])  # its own keys and the items, each checked
+        return Task(**{k: v for k, v in values.items() if k not in TASK_ARRAYS}, items=items)  # TaskError: items against the intervals
 
     def costs(self):
         from fatigue_pin.ocp.costs import cost_term

@@ -98,6 +98,21 @@ def task_table(table: Any) -> tuple[dict[str, Any], tuple[Any, ...]]:
     return values, tuple(items)
 
 
+def key_tables() -> dict[str, dict[str, Any]]:
+    """The keys of every table a study file may hold but ``[fatigue]``, ``[costs]`` and
+    ``[labels]``, by table (``"task.targets (frame)"``, ...): docs/studies.md lists them (a test
+    holds it to this)."""
+    from fatigue_pin.robot.model import Payload
+
+    frame = {**table_keys(FrameTarget), **table_keys(FrameOrientation, renames=ORIENTATION_RENAMES)}
+    return {
+        "model": table_keys(ModelSource), "model.payload": table_keys(Payload),
+        "task": table_keys(Task, skip=("items",)), "task.targets (joint)": table_keys(JointTarget),
+        "task.targets (frame)": frame, "task.ranges": table_keys(JointRange), "task.planes": table_keys(FramePlane),
+        **{section: table_keys(SECTIONS[section]) for section in ("transcription", "horizon", "solver")},
+    }
+
+
 # -- [fatigue] and [costs] --------------------------------------------------------------------------
 
 
