@@ -268,22 +268,22 @@ class _Job:
     horizon: Any
     transcription: Any
     solver: Any
-    out: str | Path | None
+    store: Any  # where the runs are written (a ResultFile), or None
     name: str
     resume: bool
     say: Any
 
 
 def _run_full(job: _Job) -> StudyResult:
-    from fatigue_pin.drivers.full import solution_to_run, solve_full
-    from fatigue_pin.io.results import write_run
+    from fatigue_pin.drivers.full import solve_full
+    from fatigue_pin.drivers.run import solution_to_run
 
     h = job.horizon
     ocp, sol = solve_full(job.problem, h.cycles, job.transcription, job.solver, guess=h.guess, progress=job.say,
                           end_tolerance=h.end_box)
     run = solution_to_run(ocp, sol, job.name, study=job.study.to_toml(), labels=job.study.labels)
-    if job.out is not None:
-        write_run(job.out, run)
+    if job.store is not None:
+        job.store.write(run)
     outcome = "converged" if run.converged else f"NOT CONVERGED ({run.attrs['status']})"
     return StudyResult("full", run, run.n_cycles, run.converged, run.converged, float(run.attrs.get("objective", math.nan)),
                        int(run.attrs.get("iterations", -1)), float(run.attrs["wall_time_s"]), outcome)
@@ -294,7 +294,7 @@ def _run_sliding(job: _Job) -> StudyResult:
 
     runner = SlidingHorizon(job.problem, job.horizon.sliding_settings(), job.transcription, job.solver, guess=job.horizon.guess,
                             study=job.study.to_toml(), labels=job.study.labels, progress=job.say)
-    run = runner.run(job.out, name=job.name, resume=job.resume, progress=job.say)
+    run = runner.run(job.store, name=job.name, resume=job.resume, progress=job.say)
     a = run.attrs
     objective = float(run.cycle_costs.sum()) if run.cycle_costs.size else math.nan
     outcome = f"{a['repetitions']} repetitions ({a['converged_windows']} windows converged, {a['wall_time_s']:.1f} s solving)"
@@ -303,11 +303,11 @@ def _run_sliding(job: _Job) -> StudyResult:
 
 
 def _run_search(job: _Job) -> StudyResult:
-    from fatigue_pin.drivers.full import max_repetitions
+    from fatigue_pin.drivers.search import max_repetitions
 
     h = job.horizon
     search = max_repetitions(job.problem, job.transcription, job.solver, n_max=h.max_cycles, guess=h.guess, progress=job.say,
-                             out=job.out, name=job.name, study=job.study.to_toml(), labels=job.study.labels, resume=job.resume,
+                             store=job.store, name=job.name, study=job.study.to_toml(), labels=job.study.labels, resume=job.resume,
                              end_tolerance=h.end_box)
     run = search.run
     failed = ", ".join(f"{n}: {k}" for n, k in search.failures.items()) or "none"
@@ -332,11 +332,13 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     """
     from fatigue_pin.core.progress import as_reporter
 
+    from fatigue_pin.io.results import ResultFile
+
     if out is not None:  # before any work: a bad output path fails now, not after the solve
         from fatigue_pin.io.results import check_output
 
         check_output(out)
     horizon = study.horizon_settings()
-    job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir), out,
-               name or study.run_name(), resume, as_reporter(progress))
+    job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
+               ResultFile(out) if out is not None else None, name or study.run_name(), resume, as_reporter(progress))
     return _RUNNERS[horizon.kind](job)

@@ -50,16 +50,17 @@ def test_capacity_figure_and_peak_torques(tmp_path: Path) -> None:
     _check(paths, {"full_fatigue_torque_capacity"})
 
 
-def test_target_loads_and_limits() -> None:
+def test_target_loads_come_from_the_stored_limits() -> None:
     run = make_curl_run()
-    tl = plots.target_loads(run)
+    tl = run.target_loads()
     np.testing.assert_allclose(tl[:, 0], run.tau_plus[:, 0] / 50.0)
     np.testing.assert_allclose(tl[:, 3], run.tau_minus[:, 1] / -50.0)
     assert (tl >= 0).all()
-    del run.attrs["tau_limits"]
-    np.testing.assert_allclose(plots.tau_limits(run), [50, -50, 50, -50])
     run.attrs["tau_limits"] = np.array([40.0, -30.0, 20.0, -10.0])
-    np.testing.assert_allclose(plots.target_loads(run)[:, 1], run.tau_minus[:, 0] / -30.0)
+    np.testing.assert_allclose(run.target_loads()[:, 1], run.tau_minus[:, 0] / -30.0)
+    del run.attrs["tau_limits"]  # no guessed limits: a run without them says so
+    with pytest.raises(ResultFileError, match="tau_limits"):
+        run.target_loads()
 
 
 def test_plot_file_with_several_runs(tmp_path: Path) -> None:
@@ -73,18 +74,6 @@ def test_plot_file_with_several_runs(tmp_path: Path) -> None:
     per_run = ("joint_angles", "fatigue_states", "torque_limits", "cycle_costs", "solve_time")
     expected = {f"{r}_{f}" for r in ("full_fatigue_torque", "sliding_torque") for f in per_run}
     _check(paths, expected | {"runs_comparison", "search_full_fatigue_torque"})
-
-
-def test_plot_file_forward_studies(tmp_path: Path) -> None:
-    from fatigue_pin.paper.forward import ForwardStudyConfig, run_forward_studies
-
-    cfg = ForwardStudyConfig(t_end=3.0, n_eval=301)
-    res = run_forward_studies(tmp_path / "fwd", progress=None, config=cfg)
-    back = plots.read_forward_studies(res.h5_path)
-    assert [(r.S, r.mr0) for r in back.study2] == [(r.S, r.mr0) for r in res.study2]
-    np.testing.assert_array_equal(back.study2[-1].trajectory.mf, res.study2[-1].trajectory.mf)
-    paths = plots.plot_file(res.h5_path, tmp_path / "figs")
-    _check(paths, {"study1_states", "study2_states", "study2_invariant_error"})
 
 
 def test_plot_file_rejects_other_files(tmp_path: Path) -> None:
