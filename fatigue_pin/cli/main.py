@@ -145,9 +145,10 @@ def _curl_study(args: argparse.Namespace, horizon: str):
                     max_wall_time="max_wall_time")
     if args.no_compile:
         solver["compile"] = False
-    cycles = {"full": "cycles", "sliding": "window"}.get(horizon, "")
     bound = "n_max" if horizon == "max-cycles" else "max_cycles"
-    options = _given(args, cost="cost", preset_name="preset", S="stabilization", guess="guess", cycles=cycles, max_cycles=bound)
+    options = _given(args, cost="cost", preset_name="preset", S="stabilization", guess="guess", max_cycles=bound)
+    if horizon in ("full", "sliding"):  # the horizon, or the window
+        options.update(_given(args, cycles="cycles" if horizon == "full" else "window"))
     data = curl_study_dict(horizon, solver=solver, **options)
     if horizon == "sliding":
         data["horizon"].update(_given(args, advance="advance"))
