@@ -134,7 +134,8 @@ def _table_keys(cls: type, skip: tuple[str, ...], rename_items: tuple[tuple[str,
 # -- types of values ---------------------------------------------------------------------------------
 
 
-def _is_number(v: Any) -> bool:
+def is_toml_number(v: Any) -> bool:
+    """An integer or a float (finite or not) of a TOML file, not a bool."""
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
@@ -147,7 +148,7 @@ def type_check(annotation: Any) -> Callable[[Any], bool]:
 
 def _type_check(tp: Any) -> Callable[[Any], bool]:
     origin, args = typing.get_origin(tp), typing.get_args(tp)
-    simple = {bool: is_bool, int: is_int, float: _is_number, str: is_str, dict: lambda v: isinstance(v, dict)}
+    simple = {bool: is_bool, int: is_int, float: is_toml_number, str: is_str, dict: lambda v: isinstance(v, dict)}
     if tp in simple:
         return simple[tp]
     if origin in (tuple, list, collections.abc.Sequence):
@@ -194,7 +195,7 @@ def fill(cls: type, table: Any, path: str, *, skip: tuple[str, ...] = (), rename
     for name, key in keys.items():
         if name in table:
             value = table[name]
-            if _is_number(value) and not math.isfinite(float(value)):
+            if is_toml_number(value) and not math.isfinite(float(value)):
                 raise StudyError(f"{path}.{name} = {value!r}: expected a finite number" + (f" ({key.expected})" if key.expected else ""))
         elif key.required and name not in optional:
             raise StudyError(f"missing key {path}.{name}: expected {key.phrase}")

@@ -14,7 +14,7 @@ import re
 from typing import Any
 
 from fatigue_pin.drivers.horizon import Horizon
-from fatigue_pin.io.schema import StudyError, build, fill, read_table, table_keys
+from fatigue_pin.io.schema import StudyError, build, fill, is_toml_number, read_table, table_keys
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, Task
 from fatigue_pin.ocp.transcription import Transcription
@@ -28,10 +28,6 @@ TOP_KEYS = ("name", "model", "fatigue", "task", "costs", "transcription", "horiz
 TASK_ARRAYS = ("targets", "ranges", "planes")
 #: A frame target table names FrameOrientation's fields thus (beside FrameTarget's own keys).
 ORIENTATION_RENAMES = {"rotation": "rpy", "tolerance": "angle_tolerance"}
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 # -- [task] -------------------------------------------------------------------------------------------
@@ -132,7 +128,7 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
     for key, value in out.items():
         if key not in allowed:
             raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints' or a parameter of {kind!r}: {list(params)}")
-        if key in params and (not _is_number(value) or not math.isfinite(float(value)) or value < 0):
+        if key in params and (not is_toml_number(value) or not math.isfinite(float(value)) or value < 0):
             unit = FATIGUE_MODELS[kind].param_units[params.index(key)]
             raise StudyError(f"{where}.{key} = {value!r}: expected " + ("a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite number >= 0"))
         if key == "preset" and not isinstance(value, str):
@@ -158,7 +154,7 @@ def _costs_table(table: Any) -> dict[str, Any]:
         raise StudyError(f"costs = {table!r}: expected a table of name = weight")
     out: dict[str, Any] = {}
     for name, spec in table.items():
-        if _is_number(spec):
+        if is_toml_number(spec):
             spec = {"weight": spec}
         if not isinstance(spec, dict):
             raise StudyError(f"costs.{name} = {spec!r}: expected a weight or a table {{ weight = ..., ... }}")
@@ -169,7 +165,7 @@ def _costs_table(table: Any) -> dict[str, Any]:
         if "weight" not in spec:
             raise StudyError(f"missing key costs.{name}.weight: expected a weight >= 0")
         w = spec["weight"]
-        if not _is_number(w) or not math.isfinite(float(w)) or w < 0:
+        if not is_toml_number(w) or not math.isfinite(float(w)) or w < 0:
             raise StudyError(f"costs.{name}.weight = {w!r}: expected a finite weight >= 0")
         for key in spec:
             if key not in ("weight", "kind", "joints"):
@@ -224,7 +220,7 @@ def fill_placeholders(text: str, data: dict[str, Any]) -> str:
             if not isinstance(node, dict) or part not in node:
                 raise StudyError(f"name {text!r}: placeholder {{{match.group(1)}}} is not a key of the study")
             node = node[part]
-        return f"{node:g}" if _is_number(node) else str(node)
+        return f"{node:g}" if is_toml_number(node) else str(node)
 
     return re.sub(r"\{([A-Za-z0-9_.\-]+)\}", value, text)
 
