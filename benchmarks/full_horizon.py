@@ -13,7 +13,7 @@ the first row starts from rest. The default preset is ``authors-code``, the valu
 paper's 32 repetitions (with the text's R = 0.00094 the arm cannot do 32). The last columns are
 IPOPT's wall time per call of the Lagrangian's Hessian and of the constraint Jacobian.
 
-Reference (SPEC / issue 4): the paper's own code on this kind of machine took 3.96 s for 1 cycle
+Reference (issue 4): the paper's own code on this kind of machine took 3.96 s for 1 cycle
 and 13.6 s for 3 cycles (~4.5 s per cycle, 0.27 s per iteration at 3 cycles).
 """
 

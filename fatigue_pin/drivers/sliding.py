@@ -1,6 +1,6 @@
 """Sliding-horizon (cyclic NMPC) solves: a window of K cycles advancing A cycles at a time.
 
-Paper section 3 / SPEC section 4. One :class:`~fatigue_pin.ocp.transcription.Ocp` of K cycles is built
+Paper section 3 (docs/ocp.md). One :class:`~fatigue_pin.ocp.transcription.Ocp` of K cycles is built
 (and compiled) once; every window re-solves it with new parameters:
 
 * its initial state is the previous window's state at node A * n (n intervals per cycle);

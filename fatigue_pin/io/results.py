@@ -19,7 +19,11 @@ Layout (``docs/results.md``)::
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
-    /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
+    /search/<table>                  max-cycles searches (fatigue_pin.drivers.search), one row per solve:
+                                     n_cycles, converged, status, iterations, wall_time_s, kind
+                                     (how it ended), guess (what started it), constraint_violation;
+                                     attributes: run (the best run's name), max_cycles, the labels
+    /searched/<table>/N<n>           the converged solution of every N the search tried
 
 The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
 run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
@@ -34,7 +38,6 @@ new file, both complete and readable, and a write costs about the same whatever 
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import json
 import os
@@ -45,7 +48,7 @@ import h5py
 import numpy as np
 
 from fatigue_pin.core.errors import ResultFileError
-from fatigue_pin.core.files import check_folder, check_output_dir, check_space, clone, fsync, locked
+from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
     RUN_ATTRIBUTES,
@@ -240,27 +243,23 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
             the write fails (full disk, permissions), naming the path.
     """
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
+
+    def write(tmp: Path) -> None:
+        compacted = _prepare(path, tmp)
+        with h5py.File(tmp, "a") as h5:
+            if compacted is not None:
+                h5.attrs["compacted_bytes"] = compacted
+            for key in skip:  # run names may be paths such as "sliding/torque_S10"
+                if key in h5:
+                    del h5[key]
+            fill(h5)
+            h5.attrs["format"] = FORMAT
+
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with locked(path.with_name(f".{path.name}.lock")):
             _check_room(path, new_bytes)
-            try:
-                compacted = _prepare(path, tmp)
-                with h5py.File(tmp, "a") as h5:
-                    if compacted is not None:
-                        h5.attrs["compacted_bytes"] = compacted
-                    for key in skip:  # run names may be paths such as "sliding/torque_S10"
-                        if key in h5:
-                            del h5[key]
-                    fill(h5)
-                    h5.attrs["format"] = FORMAT
-                fsync(tmp)
-                os.replace(tmp, path)
-                fsync(path.parent, directory=True)
-            finally:
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
+            atomic_write(path, write, tmp=path.with_name(path.name + ".tmp"))
     except OSError as exc:
         raise _io_error(path, exc) from exc
 

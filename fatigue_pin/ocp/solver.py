@@ -111,8 +111,8 @@ class SolverOptions:
             the derivatives IPOPT needs of them once per model (:mod:`fatigue_pin.ocp.compiled`,
             cached under a key without the horizon) and lets CasADi's virtual machine assemble
             any horizon around them: a new horizon builds in seconds. ``nlp`` generates and
-            compiles the whole NLP of each horizon (about a minute each on arm26) and is faster
-            per iteration on long horizons (docs/ocp.md, "Compiled code").
+            compiles the whole NLP of each horizon (about a minute each on arm26); measured slower
+            per iteration than ``library`` at 4, 16 and 32 cycles (docs/ocp.md, "Compiled code").
         compile_jobs: compiler processes for a library (default: every core).
         accept_acceptable: count IPOPT's ``Solved_To_Acceptable_Level`` as converged, as CasADi's
             ``success`` flag does (and so the authors' code, docs/authors-code.md D11). Default

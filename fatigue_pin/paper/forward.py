@@ -57,7 +57,7 @@ __all__ = [
 PAPER_STUDY1: dict[str, float] = {"rmse_order": 1e-14, "final_abs_error_below": 1e-14}
 
 #: Paper, study 2 (Table 3): (S, mr0) -> (times (s) to precision 1e-5, 1e-6, 1e-7, 1e-8 (NaN:
-#: never), (|d ma|, |d mr|, |d mf|) at 60 s). Values as printed (SPEC section 2).
+#: never), (|d ma|, |d mr|, |d mf|) at 60 s). Values as printed (paper section 2).
 PAPER_STUDY2: dict[tuple[float, float], tuple[tuple[float, ...], tuple[float, ...]]] = {
     (5.0, 1.0001): ((0.46, 0.92, 1.40, 1.89), (7.04e-5, 2.57e-7, 7.06e-5)),
     (5.0, 0.9999): ((0.46, 0.92, 1.40, 1.89), (7.06e-5, 4.67e-8, 7.06e-5)),

@@ -181,7 +181,7 @@ def _report(rows: list[dict[str, object]], forward_table: str, preset: str, quic
         "# Reproduction report",
         "",
         f"Preset `{preset}`{' (quick subset: capped runs, repetitions are lower bounds)' if quick else ''}; "
-        f"total wall time {elapsed / 60:.1f} min. Paper values: `SPEC.md` section 5.",
+        f"total wall time {elapsed / 60:.1f} min. Paper values: docs/reproduction.md.",
         "",
         "## Forward studies (paper section 2)",
         "",

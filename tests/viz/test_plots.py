@@ -85,3 +85,38 @@ def test_plot_file_rejects_other_files(tmp_path: Path) -> None:
         plots.plot_file(tmp_path / "other.h5", tmp_path / "out")
     with pytest.raises(ResultFileError, match="not found"):
         plots.plot_file(tmp_path / "missing.h5", tmp_path / "out")
+
+
+def _drawn(monkeypatch) -> list:
+    """Capture the figures the plot functions save (their lines hold the data drawn)."""
+    figures: list = []
+    save = plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, out, stem: figures.append(fig) or save(fig, out, stem))
+    return figures
+
+
+def test_figures_draw_the_run_s_data(monkeypatch, tmp_path: Path) -> None:
+    """What is drawn is the run: each cycle's joint angles (deg), each half's mf, the stored
+    torque limits at the cycle ends; not just a file that exists."""
+    run = make_curl_run(n_cycles=3)
+    figures = _drawn(monkeypatch)
+    plots.plot_joint_angles(run, tmp_path)
+    elbow = figures[-1].axes[1]
+    assert elbow.get_title() == "elbow"
+    lines = elbow.get_lines()
+    assert len(lines) == 3
+    for c, line in enumerate(lines):
+        s = run.cycle_slice(c)
+        np.testing.assert_allclose(line.get_ydata(), np.degrees(run.q[s, 1]))
+        np.testing.assert_allclose(line.get_xdata(), run.t[s] - run.t[s.start])
+    plots.plot_fatigue_states(run, tmp_path)
+    elbow_plus = figures[-1].axes[2]
+    assert elbow_plus.get_title() == "elbow_plus (limit +50 N m)"
+    (tl,) = [ln for ln in elbow_plus.get_lines() if ln.get_drawstyle() == "steps-post"]  # the target load; states: bands
+    np.testing.assert_allclose(tl.get_ydata(), run.tau_plus[:, 1] / 50.0)
+    top = elbow_plus.collections[-1].get_paths()[0].vertices[:, 1].max()  # the mf band reaches ma + mr + mf
+    assert top == pytest.approx((run.ma[:, 2] + run.mr[:, 2] + run.mf[:, 2]).max())
+    plots.plot_torque_limits(run, tmp_path)
+    drawn = [np.asarray(line.get_ydata()) for ax in figures[-1].axes for line in ax.get_lines()]
+    expected = np.concatenate([[50.0 * (1 - run.fatigued[0, 2])], run.torque_limits[:, 2]])
+    assert any(d.shape == expected.shape and np.allclose(d, expected) for d in drawn)
