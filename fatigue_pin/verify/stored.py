@@ -199,7 +199,7 @@ def _robot(run: RunResult, study, notes: list[str]):
     except FatiguePinError as exc:
         text = " ".join(str(exc).split())
         if run.urdf:
-            text = text.replace(str(path), "its stored URDF")
+            text = text.replace(f"URDF file {str(path)!r}", "its stored URDF text").replace(str(path), "its stored URDF text")
         raise ResultFileError(f"run {run.name!r}: the model it was solved on cannot be rebuilt: {text}") from None
     g = np.asarray(robot.pin_model.gravity.linear, dtype=float)
     if not np.all(np.isfinite(g)):

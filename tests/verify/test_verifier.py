@@ -314,6 +314,19 @@ def test_non_finite_stored_values_fail_a_check(field, row, column, where, full_f
     assert "not re-integrated: their stored values are not finite" in out and "Traceback" not in out
 
 
+def test_an_absurd_interval_is_bounded(full_file, tmp_path, capsys, alarm):
+    """A stored dt of 1e9 s would take the reference integration for ever: each interval stops
+    after MAX_EVALUATIONS rate evaluations, and after MAX_FAILED_INTERVALS the gap check stops."""
+    from fatigue_pin.verify.dynamics import MAX_FAILED_INTERVALS
+
+    path, name = full_file
+    bad = _changed(path, name, tmp_path, attrs={"dt": 1e9})
+    assert main(["verify", bad]) == 1
+    out = capsys.readouterr().out
+    assert "gap q inf > 0.001 (interval 0, " in out
+    assert f"failed on {MAX_FAILED_INTERVALS} intervals already" in out and "evaluations of the rates" in out
+
+
 def test_the_catalogue_lists_the_verify_cases():
     doc = (Path(__file__).resolve().parents[2] / "docs" / "errors.md").read_text()
     missing = [case for case, *_ in BAD_INPUT if f"`{case}`" not in doc]
