@@ -20,12 +20,13 @@ DEFAULT_VELOCITY_LIMIT = 10 * math.pi
 
 
 def finite_check(s: Stored) -> VerifyCheck:
-    """How many stored numbers (q, qdot, torques, each half's fatigue states) are NaN or infinite;
-    any fails (tolerance 0), with the first one named."""
+    """How many stored numbers (q, qdot, torques, each half's fatigue states and fatigued
+    fraction) are NaN or infinite; any fails (tolerance 0), with the first one named."""
     joints = s.joints
     parts = [
         ("node", s.Y, [f"q {j}" for j in joints] + [f"qdot {j}" for j in joints]),
         ("node", s.M, s.state_labels),
+        ("node", np.asarray(s.run.fatigued, dtype=float), [f"fatigued {h.name}" for h in s.halves]),
         ("interval", np.column_stack([s.run.tau_plus, s.run.tau_minus]),
          [f"tau_plus {j}" for j in joints] + [f"tau_minus {j}" for j in joints]),
     ]
@@ -40,10 +41,10 @@ def finite_check(s: Stored) -> VerifyCheck:
 
 
 def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float]:
-    """``TL + m_fatigued`` in [0, 1] at every node, with ``u_N := u_{N-1}``."""
+    """``TL + m_fatigued`` in [0, 1] at every node, with ``u_N := u_{N-1}`` and m_fatigued the
+    stored fatigued fraction of every half (:attr:`RunResult.fatigued`)."""
     TL_nodes = np.vstack([s.TL, s.TL[-1:]])
-    fatigued = np.column_stack([s.run.fatigue[h.fatigued][:, i] for i, h in enumerate(s.halves)])
-    c = TL_nodes + fatigued
+    c = TL_nodes + np.asarray(s.run.fatigued, dtype=float)
     value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
     return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value
 

@@ -5,7 +5,8 @@
   ``model.urdf`` pointed at the stored text), so that the payload and gravity are read in one place.
 * The task: :meth:`Study.task` of the stored study (the items of :mod:`fatigue_pin.ocp.task`).
 * The fatigue models of every half: the ``fatigue_params`` attribute (kind and values per half).
-* The torque limits that make the target loads: the ``tau_limits`` attribute (signed, one per half).
+* The torque limits and the target loads: :attr:`RunResult.signed_limits` and
+  :meth:`RunResult.target_loads` (the stored ``tau_limits`` attribute, signed, one per half).
 * The grid: ``dt``, ``intervals_per_cycle``, ``substeps`` attributes.
 
 Everything is checked for what the reference integration needs (finite gravity, limits and time
@@ -24,8 +25,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from fatigue_pin.core.errors import FatiguePinError
-from fatigue_pin.io.results import ResultFileError, RunResult
+from fatigue_pin.core.errors import FatiguePinError, ResultFileError
+from fatigue_pin.drivers.run import RunResult
 from fatigue_pin.verify.fatigue_rhs import numpy_rhs
 
 __all__ = ["Half", "Stored", "rebuild"]
@@ -38,7 +39,7 @@ class Half:
     Attributes:
         name: e.g. ``elbow_plus``; kind: fatigue model kind; model: its FatigueModel.
         params: the model's parameters by name; states: its state names, in order.
-        fatigued: the fatigued state's name; limit: signed torque at TL = 1 (N m).
+        limit: signed torque at TL = 1 (N m).
         rhs: ``(m, TL) -> dm/dt`` (numpy transcription, or the model's ``rates`` without one).
     """
 
@@ -47,7 +48,6 @@ class Half:
     model: Any
     params: dict[str, float]
     states: tuple[str, ...]
-    fatigued: str
     limit: float
     rhs: Callable[[np.ndarray, float], np.ndarray]
 
@@ -64,7 +64,7 @@ class Stored:
         substeps: RK4 substeps of the transcription (0: unknown).
         Y: stored (q, qdot) per node, (N + 1, 2 nq); M: fatigue states, (N + 1, states), each
         half's states in its model's order; tau: joint torques tau_plus + tau_minus, (N, nv);
-        TL: target loads, (N, halves).
+        TL: target loads, (N, halves) (:meth:`RunResult.target_loads`).
         notes: what was found while rebuilding (defaults taken, differences).
     """
 
@@ -125,11 +125,9 @@ def rebuild(run: RunResult) -> Stored:
     task = _task(run, study, n, notes)
     cols = [run.fatigue[s][:, h] for h, half in enumerate(halves) for s in half.states]
     M = np.column_stack(cols).astype(float) if cols else np.zeros((N + 1, 0))
-    signed_tau = np.empty((N, 2 * robot.nv))
-    signed_tau[:, 0::2], signed_tau[:, 1::2] = run.tau_plus, run.tau_minus
     return Stored(run=run, robot=robot, task=task, halves=halves, limits=limits, horizon=horizon, dt=dt, n=n,
                   substeps=substeps, Y=np.hstack([run.q, run.qdot]).astype(float), M=M,
-                  tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=signed_tau / limits[None, :], notes=notes)
+                  tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=run.target_loads(), notes=notes)
 
 
 def _intervals(run: RunResult) -> int:
@@ -213,22 +211,20 @@ def _robot(run: RunResult, study, notes: list[str]):
 
 
 def _limits(run: RunResult, robot, notes: list[str]) -> np.ndarray:
-    """Signed torque limits (plus, minus per joint) from the ``tau_limits`` attribute."""
-    effort = np.asarray(robot.tau_upper, dtype=float)
-    urdf = np.ravel(np.column_stack([effort, -effort]))
-    if run.attrs.get("tau_limits") is None:
-        notes.append("no tau_limits attribute: torque limits from the URDF effort limits")
-        return urdf
+    """Signed torque limits (plus, minus per joint), as stored (:attr:`RunResult.signed_limits`)."""
     try:
-        signed = np.asarray(run.attrs["tau_limits"], dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ResultFileError(f"run {run.name!r}: attribute tau_limits = {run.attrs['tau_limits']!r} is not a list of numbers") from None
-    if signed.size != 2 * robot.nv:
-        raise ResultFileError(f"run {run.name!r}: {signed.size} torque limits for {2 * robot.nv} halves")
+        signed = run.signed_limits
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ResultFileError):
+            raise
+        raise ResultFileError(f"run {run.name!r}: attribute tau_limits = {run.attrs.get('tau_limits')!r} is not a list of numbers") from None
     if not np.all(np.isfinite(signed)) or np.any(signed[0::2] <= 0) or np.any(signed[1::2] >= 0):
         raise ResultFileError(f"run {run.name!r}: torque limits {signed.tolist()} N m; expected finite limits, > 0 for "
                               "each plus half and < 0 for each minus half")
-    if not np.allclose(signed, urdf):
+    effort = np.asarray(robot.tau_upper, dtype=float)
+    if signed.size != 2 * effort.size:
+        raise ResultFileError(f"run {run.name!r}: {signed.size} torque limits for {2 * effort.size} halves")
+    if not np.allclose(signed, np.ravel(np.column_stack([effort, -effort]))):
         notes.append(f"stored torque limits {signed.tolist()} differ from the URDF effort limits {effort.tolist()}")
     return signed
 
@@ -273,7 +269,7 @@ def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
         missing = [s for s in model.state_names if s not in run.fatigue]
         if missing:
             raise ResultFileError(f"run {run.name!r}: half {name!r} ({kind}) needs fatigue states {missing}, which the run does not store")
-        out.append(Half(name, kind, model, params, tuple(model.state_names), model.fatigued_state, float(limits[h]), rhs))
+        out.append(Half(name, kind, model, params, tuple(model.state_names), float(limits[h]), rhs))
     return out
 
 

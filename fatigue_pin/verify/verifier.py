@@ -23,7 +23,7 @@ fatigue states in [0, 1]) (:mod:`fatigue_pin.verify.constraints`), the invariant
 
 from __future__ import annotations
 
-from fatigue_pin.io.results import RunResult
+from fatigue_pin.drivers.run import RunResult
 from fatigue_pin.verify.constraints import bound_checks, coupling_check, finite_check, invariant_checks, rhs_check
 from fatigue_pin.verify.dynamics import Dynamics, coarse_grid_note, gap_checks
 from fatigue_pin.verify.dynamics import single_shooting as _single_shooting

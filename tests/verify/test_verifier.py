@@ -184,7 +184,9 @@ def test_task_coupling_and_bounds_violations(full_file):
     mf[10, 2] = 0.999  # elbow_plus: TL + mf > 1 where it pulls
     tp = run.tau_plus.copy()
     tp[10, 1] = max(tp[10, 1], 5.0)
-    r = verify_run(_with(run, fatigue={**run.fatigue, "mf": mf}, tau_plus=tp), tol)
+    fatigued = run.fatigued.copy()
+    fatigued[10, 2] = 0.999
+    r = verify_run(_with(run, fatigue={**run.fatigue, "mf": mf}, fatigued=fatigued, tau_plus=tp), tol)
     assert "coupling TL + m_fatigued in [0, 1]" in [c.name for c in r.failures]
     assert "node 10, elbow_plus" in next(c.where for c in r.checks if c.name.startswith("coupling"))
     tm = run.tau_minus.copy()
