@@ -30,7 +30,7 @@ Rhs = Callable[[float, np.ndarray], np.ndarray]
 
 #: Right-hand-side evaluations allowed per interval: a smooth interval takes tens of DOP853 steps
 #: of 12 evaluations at rtol 1e-10; a stiff or absurd one (a dt of 1e9 s, huge torques) is stopped.
-MAX_EVALUATIONS = 50_000
+MAX_EVALUATIONS = 20_000
 #: Intervals whose integration may fail before the gap check stops integrating the others.
 MAX_FAILED_INTERVALS = 3
 
