@@ -271,8 +271,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from fatigue_pin.io.results import ResultFileError, list_runs, read_run
-    from fatigue_pin.verify.check import VerifyTolerances, verify_run
+    from fatigue_pin.verify import ReferenceIntegration, VerifyTolerances, verify_run
 
+    reference = ReferenceIntegration(**_given(args, rtol="rtol", atol="atol", method="method"))  # refused before reading anything
     tol = VerifyTolerances(gap=args.gap_tol, gap_fatigue=args.gap_fatigue_tol, task=args.task_tol, coupling=args.coupling_tol,
                            bound=args.bound_tol)
     if args.all and args.run is not None:
@@ -282,8 +283,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         raise ResultFileError(f"{str(args.file)!r} holds no OCP run")
     failed = []
     for name in names:
-        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting,
-                            **_given(args, rtol="rtol", atol="atol", method="method"))
+        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=reference.rtol,
+                            atol=reference.atol, method=reference.method)
         print(report.table(), end="\n\n" if len(names) > 1 else "\n", flush=True)
         if not report.passed:
             failed.append(name)
@@ -414,11 +415,12 @@ def _add_sweep_command(sub: Any) -> None:
     p.set_defaults(func=_cmd_sweep)
 
 
+
 def _add_verify_command(sub: Any) -> None:
-    from fatigue_pin.verify.check import VerifyTolerances
+    from fatigue_pin.verify.report import METHODS, VerifyTolerances
 
     tol = VerifyTolerances()
-    run = "fatigue_pin.verify.check:verify_run"
+    run = "fatigue_pin.verify.report:ReferenceIntegration"
     p = sub.add_parser("verify", help="check a stored run independently (solve_ivp + pinocchio.aba): gaps, task, coupling, bounds, "
                                       "invariant; exit 1 when a check fails")
     p.add_argument("file", type=Path, help="HDF5 result file")
@@ -427,7 +429,7 @@ def _add_verify_command(sub: Any) -> None:
     p.add_argument("--single-shooting", action="store_true", help="also integrate the stored controls over the whole horizon")
     _option(p, "--rtol", type=float, default_from=(run, "rtol"), help="solve_ivp rtol")
     _option(p, "--atol", type=float, default_from=(run, "atol"), help="solve_ivp atol")
-    _option(p, "--method", default_from=(run, "method"), choices=["DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA"],
+    _option(p, "--method", default_from=(run, "method"), choices=list(METHODS),
             help="solve_ivp method (the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
     p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
     p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")
