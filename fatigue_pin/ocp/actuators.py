@@ -32,7 +32,8 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
-from fatigue_pin.fatigue.models import FatigueModel, FatigueParams
+from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.fatigue.models import FatigueParams
 
 __all__ = ["ActuatorHalf", "SignedTorqueActuators", "ParamsSpec"]
 

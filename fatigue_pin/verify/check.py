@@ -194,14 +194,15 @@ class VerifyReport:
 
 
 def _xia(m: np.ndarray, TL: float, p: dict[str, float]) -> np.ndarray:
-    """Xia's 3CC with stabiliser S and rest multiplier r (docs/fatigue.md; SPEC section 1)."""
+    """Xia's 3CC with stabiliser S and rest multiplier r (docs/fatigue.md; SPEC section 1); r acts
+    while ma >= TL and TL <= rest_load (default 1: on the whole relaxation branch)."""
     ma, mr, mf = m
     if ma < TL:
         C = p["LD"] * (TL - ma) if mr >= TL - ma else p["LD"] * mr
         R = p["R"]
     else:
         C = p["LR"] * (TL - ma)
-        R = p["r"] * p["R"]
+        R = p["r"] * p["R"] if TL <= p.get("rest_load", 1.0) else p["R"]
     return np.array([
         C - p["F"] * ma,
         -C + R * mf,

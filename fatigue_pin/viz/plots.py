@@ -351,7 +351,8 @@ def _png_as_pdf(png: Path) -> Path:
 
 def read_forward_studies(path: Path) -> ForwardStudiesResult:
     """Rebuild the in-memory forward-study results from ``forward_studies.h5`` (layout: docs/results.md)."""
-    from fatigue_pin.fatigue.models import FatigueParams, FatigueTrajectory
+    from fatigue_pin.fatigue.models import FatigueParams
+    from fatigue_pin.fatigue.simulation import FatigueTrajectory
     from fatigue_pin.paper.forward import ForwardStudiesResult, ForwardStudyConfig, Study2Run
 
     def trajectory(g: h5py.Group) -> FatigueTrajectory:

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from fatigue_pin.cli.main import main
-from fatigue_pin.fatigue.models import MichaudFatigue, XiaFatigue
+from fatigue_pin.fatigue.michaud import MichaudFatigue
+from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.paper.curl import curl_study
 from fatigue_pin.paper.reproduce import _verify_rows
 from fatigue_pin.io.results import read_run, write_run
@@ -215,7 +216,7 @@ def test_coarse_grid_fails_and_says_why():
 
 def test_numpy_rhs_matches_the_models_rates_on_every_branch():
     rng = np.random.default_rng(0)
-    models = [XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0),
+    models = [XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0), XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0, rest_load=0.3),
               MichaudFatigue(10, 10, 0.456, 0.0094, effort_threshold=0.2, effort_factor=0.1, stabilization_factor=1.0)]
     for model in models:
         f, p = numpy_rhs(model.kind), model.as_dict()
