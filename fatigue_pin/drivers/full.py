@@ -133,7 +133,11 @@ class OcpBuilder:
     """Builds the OCPs of one problem for any horizon, sharing its interval functions.
 
     Args:
-        problem, transcription, solver: as for :class:`Ocp`; guess: the default initial guess.
+        problem: as for :class:`Ocp`.
+        transcription: as for :class:`Ocp`.
+        solver: as for :class:`Ocp`.
+        guess: the default initial guess.
+        progress: a Reporter or a line callback (default quiet).
     """
 
     def __init__(self, problem: Problem, transcription: Transcription | None = None, solver: SolverOptions | None = None,
@@ -223,7 +227,8 @@ def max_repetitions(
 
     Args:
         problem: the problem.
-        transcription, solver: discretisation and IPOPT settings.
+        transcription: discretisation settings.
+        solver: IPOPT settings.
         n_max: largest N tried (``None``: gallop until a failure).
         guess: initial guess of the first solve.
         progress: a Reporter (a line per step and a bar over the steps) or a line callback.

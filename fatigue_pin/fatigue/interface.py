@@ -49,7 +49,8 @@ def check_rate(owner: str, name: str, value: object, unit: str) -> float:
     """Return ``value`` as a float, or raise ParameterError if it is not a finite number >= 0.
 
     Args:
-        owner, name: what the value is, for the message (e.g. ``"XiaFatigue"``, ``"F"``).
+        owner: what holds the value, for the message (e.g. ``"XiaFatigue"``).
+        name: the value's name, for the message (e.g. ``"F"``).
         value: the value to check.
         unit: ``"1/s"`` for a rate, anything else for a dimensionless multiplier.
     """

@@ -269,7 +269,8 @@ def load_preset_json(path: str | Path) -> FatigueModel:
 
     The file is a JSON object with ``model`` (``"3cc"``, ``"3cc-r"``, ``"xia"`` or ``"michaud"``) and
     the model's parameters as numbers at the top level (``F``, ``R``, ``LD``, ``LR``, and ``S``, ``r``
-    for Xia's model; missing ``S`` is 0 and missing ``r`` is 1). Other entries (confidence
+    for Xia's model; missing ``S`` is 0 and missing ``r`` is 1), and the model's options when
+    given (Xia's ``rest_load``, default 1). Other entries (confidence
     intervals, residuals, source) are ignored here.
 
     Raises:

@@ -108,7 +108,9 @@ def simulate(
         m0: initial states ``(ma, mr, mf)``, shape (3,).
         t_end: final time (s), > 0; the simulation starts at t = 0.
         t_eval: output times (s); ``None`` returns the integrator's own steps.
-        method, rtol, atol: integrator and tolerances (scipy's defaults are RK45, 1e-3, 1e-6).
+        method: scipy integrator (scipy's default RK45).
+        rtol: relative tolerance (scipy's default 1e-3).
+        atol: absolute tolerance (scipy's default 1e-6).
         **solve_ivp_options: passed on to ``solve_ivp`` (e.g. ``max_step``, ``first_step``).
 
     Returns:

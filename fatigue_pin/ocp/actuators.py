@@ -365,7 +365,8 @@ class SignedTorqueActuators:
 
         Args:
             m: fatigue states, shape (n_states,).
-            tau_plus, tau_minus: half torques (N m), shape (nv,) each.
+            tau_plus: flexion half torques (N m), shape (nv,).
+            tau_minus: extension half torques (N m), shape (nv,).
             p: optional parameter vector, shape (n_params,), e.g. a symbol; default
                 :meth:`param_vector`.
         """

@@ -137,8 +137,11 @@ def curl_study_dict(
         S: stabiliser of every half (1/s).
         cycles: the full horizon, or the window (default 1 / 3).
         max_cycles: sliding: stop after; max-cycles: search bound.
-        guess, solver, transcription: optional settings of those tables.
-        intervals_per_cycle, substeps: the discretisation (the paper's 50 and 5; tests use less).
+        guess: the ``horizon.guess`` setting.
+        solver: optional ``[solver]`` settings.
+        transcription: optional ``[transcription]`` settings.
+        intervals_per_cycle: intervals per cycle (the paper's 50; tests use less).
+        substeps: RK4 substeps per interval (the paper's 5).
     """
     if cost not in COSTS:
         raise ParameterError(f"cost = {cost!r}: expected one of {list(COSTS)}")

@@ -555,7 +555,8 @@ def run_sweep(jobs: list[Job], out: str | Path, client: Any = None, cache_dir: s
         retries: Dask retries of a job whose worker raised a file system error.
         progress: called with one line per finished job.
         bar: show a tqdm progress bar on stderr.
-        pending, done: the result of :func:`plan`, when already computed.
+        pending: the jobs still to run, from :func:`plan`, when already computed.
+        done: the jobs already done, from :func:`plan`, when already computed.
     """
     from distributed import as_completed
 

@@ -1,4 +1,4 @@
-"""Tests of Michaud's fatigue model (fatigue_pin.fatigue.models.MichaudFatigue) and of mixing models."""
+"""Tests of Michaud's fatigue model (fatigue_pin.fatigue.michaud.MichaudFatigue) and of mixing models."""
 
 from __future__ import annotations
 
