@@ -22,7 +22,7 @@ PACKAGE = REPO / "fatigue_pin"
 def _mkdocs(config: Path, site: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "FATIGUE_PIN_DOCS_EXECUTE": "false", "NO_MKDOCS_2_WARNING": "1"}
     return subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(config), "-d", str(site)],
-                          capture_output=True, text=True, env=env, cwd=config.parent, timeout=600)
+                          capture_output=True, text=True, env=env, cwd=site.parent, timeout=600)
 
 
 @pytest.fixture(scope="module")
