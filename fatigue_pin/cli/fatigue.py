@@ -43,7 +43,7 @@ def _cmd_endurance(args: argparse.Namespace) -> int:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from fatigue_pin.fatigue.calibration import check_output_file, run_calibrate
 
-    check_output_file(args.out)
+    check_output_file(args.out, ".json")
     result, paths = run_calibrate(args.data, args.out, model=args.model, LD=args.ld, LR=args.lr,
                                   confidence=args.confidence, intermittent=args.intermittent)
     level = int(round(100 * result.confidence))

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import datetime
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,7 +44,8 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from fatigue_pin.core.errors import FatiguePinError, ParameterError
+from fatigue_pin.core.errors import FatiguePinError, OutputLocationError, ParameterError
+from fatigue_pin.core.files import atomic_write, check_output_dir
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import XiaFatigue
 
@@ -88,10 +88,6 @@ FREY_LAW_AVIN_SOURCE = (
 
 #: Target loads of the tables: 0.1, 0.2, ..., 0.9.
 DEFAULT_LOADS: tuple[float, ...] = tuple(round(0.1 * k, 1) for k in range(1, 10))
-
-
-class OutputLocationError(FatiguePinError, ValueError):
-    """An output path that cannot be written (a file where a folder is expected, no permission, ...)."""
 
 
 # -- closed forms ------------------------------------------------------------------------------------
@@ -472,22 +468,8 @@ def format_comparison(tables: Sequence[EnduranceTable]) -> str:
 # -- files --------------------------------------------------------------------------------------------
 
 
-def check_output_dir(out_dir: Path | str) -> Path:
-    """Create ``out_dir`` if needed and check it is a writable folder (raises OutputLocationError)."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise OutputLocationError(f"--out {str(out)!r} is an existing file: expected a folder (existing or new)")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputLocationError(f"--out {str(out)!r} cannot be created ({exc.strerror}): expected a writable folder") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise OutputLocationError(f"--out {str(out)!r} is not writable: expected a writable folder")
-    return out
-
-
 def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Sequence[EnduranceTable] = ()) -> Path:
-    """Write endurance tables to HDF5 (``path.tmp`` then ``os.replace``).
+    """Write endurance tables to HDF5 (atomic: :func:`fatigue_pin.core.files.atomic_write`).
 
     Layout: one group per table under ``/endurance/<i>`` and ``/frey_law_avin/<joint>`` with
     datasets ``TL``, ``et_sim_s``, ``et_closed_form_s``, ``et_power_model_s`` (if any) and attributes
@@ -500,10 +482,9 @@ def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Seq
     from fatigue_pin.core.version import __version__ as version
 
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
     definition = ("first time at which ma + mr < TL while the task asks for TL, from a rested actuator, rests "
                   "included; inf if none before t_max")
-    try:
+    def fill(tmp: Path) -> None:
         with h5py.File(tmp, "w") as h5:
             h5.attrs["description"] = "fatigue_pin endurance times of isometric tasks"
             h5.attrs["fatigue_pin_version"] = version
@@ -525,10 +506,7 @@ def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Seq
                     if tab.et_power.size:
                         g.attrs["joint"] = tab.joint
                         g.create_dataset("et_power_model_s", data=tab.et_power)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic_write(path, fill)
     return path
 
 
