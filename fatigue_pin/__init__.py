@@ -32,14 +32,22 @@ _API: dict[str, str] = {
     "load_model": "fatigue_pin.robot.model",
     "resolve_model": "fatigue_pin.robot.model",
     # fatigue
-    "FatigueModel": "fatigue_pin.fatigue.models",
+    "FatigueModel": "fatigue_pin.fatigue.interface",
     "XiaFatigue": "fatigue_pin.fatigue.models",
-    "MichaudFatigue": "fatigue_pin.fatigue.models",
+    "MichaudFatigue": "fatigue_pin.fatigue.michaud",
     "fatigue_model": "fatigue_pin.fatigue.models",
-    "simulate": "fatigue_pin.fatigue.models",
+    "simulate": "fatigue_pin.fatigue.simulation",
+    "FatigueTrajectory": "fatigue_pin.fatigue.simulation",
     "preset": "fatigue_pin.fatigue.presets",
+    "PRESETS": "fatigue_pin.fatigue.presets",
     "load_preset_json": "fatigue_pin.fatigue.presets",
     "endurance_time": "fatigue_pin.fatigue.endurance",
+    "endurance_table": "fatigue_pin.fatigue.endurance",
+    "compare_frey_law_avin": "fatigue_pin.fatigue.endurance",
+    "power_model_et": "fatigue_pin.fatigue.endurance",
+    "sustained_et_closed_form": "fatigue_pin.fatigue.endurance",
+    "FREY_LAW_AVIN_2010": "fatigue_pin.fatigue.endurance",
+    "EnduranceData": "fatigue_pin.fatigue.calibration",
     "calibrate": "fatigue_pin.fatigue.calibration",
     "read_endurance_csv": "fatigue_pin.fatigue.calibration",
     # optimal control problem
@@ -63,6 +71,7 @@ _API: dict[str, str] = {
     "solve_full": "fatigue_pin.drivers.full",
     "max_repetitions": "fatigue_pin.drivers.search",
     "SearchResult": "fatigue_pin.drivers.search",
+    "solution_to_run": "fatigue_pin.drivers.run",
     "SlidingSettings": "fatigue_pin.drivers.sliding",
     "SlidingHorizon": "fatigue_pin.drivers.sliding",
     "Horizon": "fatigue_pin.drivers.horizon",
@@ -83,9 +92,14 @@ _API: dict[str, str] = {
     "VerifyReport": "fatigue_pin.verify.report",
     "Sweep": "fatigue_pin.sweep.jobs",
     "run_sweep": "fatigue_pin.sweep.jobs",
+    "local_cluster": "fatigue_pin.sweep.jobs",
+    "read_summary": "fatigue_pin.sweep.jobs",
     "plot_run": "fatigue_pin.viz.plots",
     "plot_file": "fatigue_pin.viz.plots",
     "export_html": "fatigue_pin.viz.replay",
+    "plot_sweep": "fatigue_pin.viz.sweeps",
+    # the paper's study
+    "curl_study": "fatigue_pin.paper.curl",
 }
 
 __all__ = sorted(_API) + ["__version__"]

@@ -106,7 +106,8 @@ class SlidingHorizon:
     Args:
         problem: the problem (its initial state starts the first window).
         sliding: window settings.
-        transcription, solver: discretisation and IPOPT settings.
+        transcription: discretisation settings.
+        solver: IPOPT settings.
         guess: initial guess of the first window (``rest`` or ``physical``).
         study: the TOML text of the study, stored with the run.
         labels: attributes stored with the run (e.g. the paper's cost, S and preset).

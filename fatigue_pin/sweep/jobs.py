@@ -541,7 +541,8 @@ def run_sweep(jobs: list[Job], out: str | Path, client: Any = None, cache_dir: s
         retries: Dask retries of a job whose worker raised a file system error.
         progress: called with one line per finished job.
         bar: show a tqdm progress bar on stderr.
-        pending, done: the result of :func:`plan`, when already computed.
+        pending: the jobs still to run, from :func:`plan`, when already computed.
+        done: the jobs already done, from :func:`plan`, when already computed.
     """
     from distributed import as_completed
 
@@ -629,13 +630,19 @@ def slurm_cluster(queue: str | None = None, walltime: str = "01:00:00", cores: i
                         scheduler_options=scheduler_options, **kwargs)
 
 
-def _dashboard(client: Any) -> str | None:
+def _dashboard(client: Any) -> str:
+    """The line saying where the Dask dashboard is, or that it is off: it needs bokeh (the
+    ``dashboard`` extra, ``pip install 'fatigue_pin[dashboard]'``)."""
     try:
         if "dashboard" in client.scheduler_info().get("services", {}):
-            return client.dashboard_link
+            return f"dashboard: {client.dashboard_link}"
     except Exception:  # noqa: BLE001 - no dashboard is not an error
-        return None
-    return None
+        pass
+    import importlib.util
+
+    if importlib.util.find_spec("bokeh") is None:
+        return "dashboard: off (it needs bokeh: pip install 'fatigue_pin[dashboard]')"
+    return "dashboard: off (the scheduler serves none)"
 
 
 def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None = None, slurm: bool = False,
@@ -680,9 +687,7 @@ def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None
             cluster = local_cluster(workers)
             client = Client(cluster)
         try:
-            link = _dashboard(client)
-            if link:
-                progress(f"dashboard: {link}")
+            progress(_dashboard(client))
             outcome = run_sweep(jobs, out, client, cache_dir=cache_dir, retries=retries, progress=progress, bar=bar,
                                 pending=pending, done=done)
         finally:
