@@ -5,11 +5,8 @@
 ends in ``.json`` (or any path to an existing file) is read with :func:`load_preset_json`, so a
 study can write ``preset = "path/to/params.json"`` for the output of ``fatigue-pin calibrate``.
 
-This is the one registry of named parameter sets. The literature's sets are defined here; sets
-that belong to a study of a higher layer (the paper's, ``puchaud-2023/*``, defined in
-``fatigue_pin.paper.curl``) are listed here by name only, with the module that defines them
-(:data:`DEFINED_ELSEWHERE`), and loaded from it on first use, as ``fatigue_pin``'s public names
-are. Nothing here imports that module at import time, and its numbers are written only there.
+This is the one registry of named parameter sets, all from the literature; the paper module
+(:mod:`fatigue_pin.paper.curl`) reads its OCPs' sets, ``puchaud-2023/*``, from here.
 
 Sources of the numbers defined here (see ``docs/fatigue.md``):
 
@@ -35,16 +32,20 @@ Sources of the numbers defined here (see ``docs/fatigue.md``):
 * :data:`LOOFT_2018_R`: the rest multipliers recommended by Looft, Herkert & Frey-Law (2018),
   J Biomech 77:16-25, doi:10.1016/j.jbiomech.2018.06.005 (15 for the ankle, knee and elbow, 30 for
   grip), documented alternatives to Rakshit's r: ``preset("rakshit-2021/elbow", r=LOOFT_2018_R["elbow"])``.
+* ``puchaud-2023/paper`` and ``puchaud-2023/authors-code``: Puchaud, Michaud & Begon (2023), the
+  values of their optimal control problems (section 3): LD = LR = 10, F = 0.456, S = 10 (1/s);
+  R = 0.00094 1/s as printed in the text, 0.0094 1/s in the authors' code that produced the
+  published results (s2mLab/dumbbell_lifting; docs/authors-code.md).
 * ``bioptim/michaud-pendulum``: the values of bioptim's pendulum example for Michaud's model
   (toy values for a demonstration, not physiological).
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
+from types import MappingProxyType
 from pathlib import Path
 from typing import NamedTuple
 
@@ -54,9 +55,7 @@ from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model
 
 __all__ = [
     "Preset",
-    "PresetRegistry",
     "PRESETS",
-    "DEFINED_ELSEWHERE",
     "FREY_LAW_2012_JOINTS",
     "RAKSHIT_2021_TABLE_2",
     "LOOFT_2018_R",
@@ -148,13 +147,6 @@ RAKSHIT_2021_TABLE_2: dict[str, tuple[float, float, float | None]] = {
 #: Looft, Herkert & Frey-Law (2018): recommended rest multipliers r per joint (dimensionless).
 LOOFT_2018_R: dict[str, float] = {"ankle": 15.0, "knee": 15.0, "elbow": 15.0, "grip": 30.0}
 
-#: Presets listed here by name and defined in a module of a higher layer (its ``FATIGUE_PRESETS``).
-DEFINED_ELSEWHERE: dict[str, str] = {
-    "puchaud-2023/authors-code": "fatigue_pin.paper.curl",
-    "puchaud-2023/paper": "fatigue_pin.paper.curl",
-}
-
-
 def _build() -> dict[str, Preset]:
     out: dict[str, Preset] = {}
     for joint, (F, R) in FREY_LAW_2012_JOINTS.items():
@@ -170,6 +162,12 @@ def _build() -> dict[str, Preset]:
             {"LD": 10.0, "LR": 10.0, "F": F, "R": R, "S": 0.0, "r": 1.0 if r is None else r, "rest_load": 0.0},
             _RAKSHIT.format(row=region, no_r=no_r),
         )
+    for variant, R, where in (("paper", 0.00094, "printed in the paper text (section 3)"),
+                              ("authors-code", 0.0094, "of the authors' code that produced the published results "
+                                                       "(s2mLab/dumbbell_lifting; docs/authors-code.md)")):
+        out[f"puchaud-2023/{variant}"] = Preset(
+            "xia", {"LD": 10.0, "LR": 10.0, "F": 0.456, "R": R, "S": 10.0, "r": 1.0},
+            f"Puchaud, Michaud & Begon (2023), OCPs, values {where}: R = {R:g}")
     out["bioptim/michaud-pendulum"] = Preset(
         "michaud",
         {"LD": 100.0, "LR": 100.0, "F": 0.005, "R": 0.005, "effort_threshold": 0.2, "effort_factor": 0.001,
@@ -180,36 +178,8 @@ def _build() -> dict[str, Preset]:
     return out
 
 
-class PresetRegistry(Mapping):
-    """Read-only mapping name -> :class:`Preset`: the sets defined here, then those listed in
-    :data:`DEFINED_ELSEWHERE`, read from their module's ``FATIGUE_PRESETS`` on first use."""
-
-    def __init__(self, own: Mapping[str, Preset], elsewhere: Mapping[str, str]) -> None:
-        self._own = dict(own)
-        self._elsewhere = dict(elsewhere)
-
-    def __getitem__(self, name: str) -> Preset:
-        if name in self._own:
-            return self._own[name]
-        module = self._elsewhere[name]  # KeyError for an unknown name, as a Mapping should
-        defined = getattr(importlib.import_module(module), "FATIGUE_PRESETS", {})
-        if name not in defined:
-            raise ParameterError(f"fatigue preset {name!r} is listed as defined in {module}, which does not define it")
-        return Preset(*defined[name])
-
-    def __iter__(self) -> Iterator[str]:
-        yield from self._own
-        yield from (n for n in self._elsewhere if n not in self._own)
-
-    def __len__(self) -> int:
-        return len(self._own.keys() | self._elsewhere.keys())
-
-    def __contains__(self, name: object) -> bool:
-        return name in self._own or name in self._elsewhere
-
-
 #: name -> :class:`Preset` (model kind, parameter values, source text). Read-only.
-PRESETS = PresetRegistry(_build(), DEFINED_ELSEWHERE)
+PRESETS = MappingProxyType(_build())
 
 
 def _is_file_name(name: str) -> bool:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.models import XiaFatigue
-from fatigue_pin.fatigue.presets import Preset
+from fatigue_pin.fatigue.presets import PRESETS, preset
 
 #: The paper's three costs and the cost terms each one uses (weights of the others are 0).
 COSTS: dict[str, tuple[str, ...]] = {
@@ -57,8 +57,9 @@ class Variant:
 
 #: The paper's two variants (the study files' ``preset`` label): the text and the authors' code.
 VARIANTS: dict[str, Variant] = {
-    "paper": Variant("paper", R=0.00094, posture_weight=1e5, last_node_offset=0),
-    "authors-code": Variant("authors-code", R=0.0094, posture_weight=1e4, last_node_offset=-1),
+    "paper": Variant("paper", R=PRESETS["puchaud-2023/paper"].values["R"], posture_weight=1e5, last_node_offset=0),
+    "authors-code": Variant("authors-code", R=PRESETS["puchaud-2023/authors-code"].values["R"], posture_weight=1e4,
+                            last_node_offset=-1),
 }
 
 
@@ -83,25 +84,8 @@ def ocp_params(variant: str = "authors-code", S: float = 10.0) -> XiaFatigue:
     LD = LR = 10, F = 0.456, S = 10 (1/s). ``R`` depends on the source: ``"paper"`` (the text)
     gives 0.00094, ``"authors-code"`` (the code that produced the published results) 0.0094.
     """
-    return XiaFatigue(LD=10.0, LR=10.0, F=0.456, R=paper_variant(variant).R, S=S)
-
-
-_VARIANT_SOURCES = {
-    "paper": "printed in the paper text (section 3)",
-    "authors-code": "of the authors' code that produced the published results (s2mLab/dumbbell_lifting; docs/authors-code.md)",
-}
-
-#: The OCPs' fatigue values (S = 10) as named presets of the one registry,
-#: :data:`fatigue_pin.fatigue.presets.PRESETS`, which lists these names and reads them from here.
-FATIGUE_PRESETS: dict[str, Preset] = {
-    f"puchaud-2023/{name}": Preset(
-        "xia",
-        ocp_params(name, S=10.0).as_dict(),
-        f"Puchaud, Michaud & Begon (2023), OCPs, values {_VARIANT_SOURCES[name]}: R = {v.R:g} "
-        f"(fatigue_pin.paper.curl.ocp_params({name!r}, S=10))",
-    )
-    for name, v in VARIANTS.items()
-}
+    paper_variant(variant)  # a known variant
+    return preset(f"puchaud-2023/{variant}", S=S)
 
 
 #: The paper's repetitions (with S = 10, without stabiliser S = 0).

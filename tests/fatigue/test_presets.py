@@ -15,7 +15,6 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.michaud import MichaudFatigue
 from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.fatigue.presets import (
-    DEFINED_ELSEWHERE,
     FREY_LAW_2012_JOINTS,
     LOOFT_2018_R,
     PRESETS,
@@ -57,21 +56,17 @@ def test_grip_is_hand():
     assert preset("frey-law-2012/grip") == preset("frey-law-2012/hand")
 
 
-def test_the_paper_presets_are_defined_in_the_paper_module_only():
+def test_the_paper_reads_its_presets_from_the_one_registry():
     from fatigue_pin.paper import curl
 
-    # one registry: it lists exactly the names the paper module defines, and reads them from there
-    assert set(DEFINED_ELSEWHERE) == set(curl.FATIGUE_PRESETS) and set(DEFINED_ELSEWHERE) <= set(PRESETS)
-    for name in DEFINED_ELSEWHERE:
-        assert PRESETS[name] == curl.FATIGUE_PRESETS[name]
     assert preset("puchaud-2023/authors-code") == curl.ocp_params("authors-code", S=10.0)
-    # the numbers of SPEC section 4
+    assert curl.ocp_params("paper", S=0.0).S == 0.0 and curl.paper_variant("paper").R == PRESETS["puchaud-2023/paper"].values["R"]
+    # the published OCP values (paper section 3; R of the text and of the authors' code)
     assert preset("puchaud-2023/paper").R == 0.00094 and preset("puchaud-2023/authors-code").R == 0.0094
     assert preset("puchaud-2023/paper").F == 0.456 and preset("puchaud-2023/paper").S == 10.0
-    # the fatigue layer does not load the paper module until one of its presets is asked for
-    code = ("import sys; from fatigue_pin.fatigue import presets; assert 'fatigue_pin.paper.curl' not in sys.modules; "
-            "presets.preset('frey-law-2012/elbow'); assert 'fatigue_pin.paper.curl' not in sys.modules; "
-            "presets.preset('puchaud-2023/paper'); assert 'fatigue_pin.paper.curl' in sys.modules")
+    # the fatigue layer never loads the paper module
+    code = ("import sys; from fatigue_pin.fatigue import presets; presets.preset('puchaud-2023/paper'); "
+            "assert not any(m.startswith('fatigue_pin.paper') for m in sys.modules)")
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
