@@ -78,7 +78,7 @@ _API: dict[str, str] = {
     "RunResult": "fatigue_pin.drivers.run",
     # files
     "Study": "fatigue_pin.io.study",
-    "StudyError": "fatigue_pin.io.schema",
+    "StudyError": "fatigue_pin.core.errors",
     "run_study": "fatigue_pin.io.study",
     "StudyResult": "fatigue_pin.io.study",
     "ResultFileError": "fatigue_pin.core.errors",

@@ -49,7 +49,7 @@ from types import MappingProxyType
 from pathlib import Path
 from typing import NamedTuple
 
-from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.errors import ParameterError, PresetFileError
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model
 
@@ -64,10 +64,6 @@ __all__ = [
     "preset_source",
     "PresetFileError",
 ]
-
-
-class PresetFileError(ParameterError):
-    """A parameter file (JSON) that cannot be used as a preset."""
 
 
 class Preset(NamedTuple):
