@@ -24,43 +24,27 @@ plant override of a key the study does not have, a negative standard deviation o
 from __future__ import annotations
 
 import copy
-import dataclasses
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from fatigue_pin.core.progress import as_reporter
-from fatigue_pin.drivers.estimation import MheSettings
 from fatigue_pin.drivers.mpc import ClosedLoop, MpcSettings
-from fatigue_pin.drivers.plant import PlantDisturbance, PlantNoise, PlantSettings
+from fatigue_pin.drivers.plant import PlantSettings
 from fatigue_pin.drivers.run import RunResult
 from fatigue_pin.drivers.sliding import SlidingSettings
-from fatigue_pin.io.study import Study, StudyError, _toml_key, _toml_value
+from fatigue_pin.core.errors import StudyError
+from fatigue_pin.io.schema import read_table
+from fatigue_pin.io.study import Study
+from fatigue_pin.io.tables import _toml_key, _toml_value
 
 #: Tables of the study a [plant] table may override.
 PLANT_OVERRIDES = ("model", "fatigue")
 #: Keys of [plant] that are the plant's own settings (not overrides).
-PLANT_OWN = ("noise", "disturbance", "integrator", "substeps", "rtol", "atol")
+PLANT_OWN = ("noise", "disturbance", "integrator", "substeps", "rtol", "atol")  # fields of PlantSettings but seed
 #: Top-level keys a closed-loop study adds.
 MPC_KEYS = ("plant", "mpc", "seed")
-
-
-def _fields(cls: type) -> list[str]:
-    return [f.name for f in dataclasses.fields(cls)]
-
-
-def _settings(cls: type, table: Any, where: str, nested: dict[str, Any] | None = None) -> Any:
-    """An instance of the settings dataclass ``cls`` from a study table (unknown keys refused)."""
-    if not isinstance(table, dict):
-        raise StudyError(f"{where} = {table!r}: expected a table")
-    allowed = _fields(cls)
-    unknown = sorted(set(table) - set(allowed))
-    if unknown:
-        raise StudyError(f"unknown key {where}.{unknown[0]}; expected one of {allowed}")
-    values = {k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items() if k not in (nested or {})}
-    values.update({k: v for k, v in (nested or {}).items()})
-    return cls(**values)
 
 
 def _merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
@@ -143,15 +127,12 @@ class MpcStudy:
             raise StudyError(f"plant = {plant_table!r}: expected a table")
         plant_study = _plant_study(study.data, plant_table) if plant_table else study
         own = {k: v for k, v in plant_table.items() if k in PLANT_OWN}
-        noise = _settings(PlantNoise, own.pop("noise", {}), "plant.noise")
-        disturbance = _settings(PlantDisturbance, own.pop("disturbance", {}), "plant.disturbance")
-        plant = _settings(PlantSettings, own, "plant",
-                          {"noise": noise, "disturbance": disturbance, "seed": tables.get("seed", 0)})
-        mpc_table = dict(tables.get("mpc", {})) if isinstance(tables.get("mpc", {}), dict) else tables["mpc"]
-        if not isinstance(mpc_table, dict):
-            raise StudyError(f"mpc = {mpc_table!r}: expected a table")
-        mhe = _settings(MheSettings, mpc_table.pop("mhe", {}), "mpc.mhe")
-        mpc = _settings(MpcSettings, mpc_table, "mpc", {"mhe": mhe})
+        seed = tables.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise StudyError(f"seed = {seed!r}: expected an integer >= 0")
+        _, plant = read_table(PlantSettings, {**own, "seed": seed}, "plant")  # keys from the settings classes
+        mpc_table = tables.get("mpc", {})
+        _, mpc = read_table(MpcSettings, mpc_table, "mpc")
         return cls(study, plant_study, plant, mpc, tables)
 
     @classmethod
@@ -192,10 +173,7 @@ class MpcStudy:
 
     def sliding(self) -> SlidingSettings:
         """The controller's window from the study's [horizon] table."""
-        h = self.study.horizon
-        return SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=h["max_cycles"],
-                               end_tolerance=h["end_tolerance"], failure_iterations=h["failure_iterations"],
-                               min_iterations=h["min_iterations"], warmup=h["warmup"], guess_fatigue=h["guess_fatigue"])
+        return self.study.horizon_settings().sliding_settings()
 
     def run_name(self) -> str:
         return f"mpc/{self.study.name}"
@@ -203,7 +181,7 @@ class MpcStudy:
     def closed_loop(self, cache_dir: str | Path | None = None, progress=None) -> ClosedLoop:
         """The :class:`ClosedLoop` of this study (builds the window OCP)."""
         return ClosedLoop(self.study.problem(), self.plant_study.problem(), self.sliding(), self.mpc, self.plant,
-                          self.study.transcription(), self.study.solver(cache_dir), self.study.horizon["guess"], progress)
+                          self.study.transcription(), self.study.solver(cache_dir), self.study.horizon_settings().guess, progress)
 
 
 def run_mpc(study: MpcStudy | str | Path, out: str | Path | None = None, name: str | None = None, resume: bool = False,
