@@ -137,7 +137,8 @@ class MheEstimator(OpenLoopEstimator):
     """Moving-horizon estimation of the fatigue states and parameters (module docstring).
 
     Args:
-        functions, actuators: the controller's.
+        functions: the controller's interval functions.
+        actuators: the controller's actuators.
         settings: window, estimated parameters, prior and noise levels.
         intervals_per_cycle: n.
     """

@@ -215,7 +215,9 @@ class ClosedLoop:
             ``problem``. Its state layout must be the controller's.
         sliding: the window (K, end tolerance, max_cycles, iteration limits, guess_fatigue).
         mpc: re-planning, estimator and probes; plant: noise, disturbance, seed, integrator.
-        transcription, solver, guess: as for :class:`SlidingHorizon`.
+        transcription: as for :class:`SlidingHorizon`.
+        solver: as for :class:`SlidingHorizon`.
+        guess: as for :class:`SlidingHorizon`.
         progress: where building reports itself.
     """
 

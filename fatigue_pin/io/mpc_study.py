@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fatigue_pin.core.progress import as_reporter
+from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.mpc import ClosedLoop, MpcSettings
 from fatigue_pin.drivers.plant import PlantSettings
 from fatigue_pin.drivers.run import RunResult
@@ -185,7 +185,7 @@ class MpcStudy:
 
 
 def run_mpc(study: MpcStudy | str | Path, out: str | Path | None = None, name: str | None = None, resume: bool = False,
-            progress=None, cache_dir: str | Path | None = None, changes: dict[str, Any] | None = None,
+            progress: Progress = None, cache_dir: str | Path | None = None, changes: dict[str, Any] | None = None,
             stop_after: int | None = None) -> RunResult:
     """Run a closed-loop study and store its run in ``out`` (HDF5) after every re-plan.
 
