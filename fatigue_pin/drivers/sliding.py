@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError, ResultFileError
+from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, setting
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, run_attributes, to_run_result
@@ -43,9 +44,9 @@ class SlidingSettings:
 
     Attributes:
         window: cycles per window (K, paper: 3).
-        advance: cycles the window advances (A, paper: 1); 1 <= A < K.
-        max_cycles: stop once this many cycles are kept (``None``: until a window fails).
-        end_tolerance: end bounds of q and qdot, fraction of their range (paper: 0.01).
+        advance: cycles the window advances (A, paper: 1); 1 <= A <= K.
+        max_cycles: stop once this many cycles are kept (``None``: until a window fails); at least K.
+        end_tolerance: end bounds of q and qdot, fraction of their range in [0, 1) (paper: 0.01).
         failure_iterations: IPOPT iteration limit of a window after the first ``warmup`` windows,
             as a multiple of the median iterations of the converged windows so far (a failing
             window is then recognised within about this factor of a normal window's cost).
@@ -62,29 +63,23 @@ class SlidingSettings:
             its first window cold.
     """
 
-    window: int = 3
-    advance: int = 1
-    max_cycles: int | None = None
-    end_tolerance: float = 0.01
-    failure_iterations: float | None = 10.0
-    min_iterations: int = 200
-    warmup: int = 3
-    guess_fatigue: str = "integrate"
-    warm_start: bool = False
+    window: int = setting(3, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    advance: int = setting(1, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    max_cycles: int | None = setting(None, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    end_tolerance: float = setting(0.01, "a fraction in [0, 1) of the joint ranges", lambda v: is_number(v) and 0 <= v < 1)
+    failure_iterations: float | None = setting(10.0, "a multiple of the median window iterations >= 1",
+                                               lambda v: is_number(v) and v >= 1)
+    min_iterations: int = setting(200, "an integer >= 0", lambda v: is_int(v) and v >= 0)
+    warmup: int = setting(3, "an integer >= 0", lambda v: is_int(v) and v >= 0)
+    guess_fatigue: str = setting("integrate", "'integrate' or 'copy'", lambda v: v in ("integrate", "copy"))
+    warm_start: bool = setting(False, "true or false", is_bool)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.warm_start, bool):
-            raise ParameterError(f"SlidingSettings.warm_start = {self.warm_start!r}: expected true or false")
-        if self.guess_fatigue not in ("integrate", "copy"):
-            raise ParameterError(f"SlidingSettings.guess_fatigue = {self.guess_fatigue!r}: expected 'integrate' or 'copy'")
-        if not (isinstance(self.window, int) and self.window >= 1):
-            raise ParameterError(f"SlidingSettings.window = {self.window!r}: expected an integer number of cycles >= 1")
-        if not (isinstance(self.advance, int) and 1 <= self.advance <= self.window):
+        check_fields(self)
+        if self.advance > self.window:
             raise ParameterError(f"SlidingSettings.advance = {self.advance!r}: expected an integer in [1, window = {self.window}]")
         if self.max_cycles is not None and self.max_cycles < self.window:
-            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected None or >= window = {self.window}")
-        if self.failure_iterations is not None and self.failure_iterations < 1:
-            raise ParameterError(f"SlidingSettings.failure_iterations = {self.failure_iterations!r}: expected None or >= 1")
+            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected at least the window, window = {self.window}")
 
 
 @dataclass
@@ -121,6 +116,15 @@ def median_real_time_factor(windows: np.ndarray, advanced_s: float) -> float:
     """Median :func:`real_time_factors` of the converged windows (NaN when none converged)."""
     ok = np.asarray(windows["converged"], dtype=bool) if len(windows) else np.zeros(0, dtype=bool)
     return float(np.median(real_time_factors(windows, advanced_s)[ok])) if ok.any() else float("nan")
+def iteration_limit(converged_iterations: list[int], settings: SlidingSettings, max_iter: int) -> int | None:
+    """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
+    iterations of the first ``warmup`` converged windows (``converged_iterations``, in order;
+    fixed once known, so a resumed run uses the same limit), at least ``min_iterations``, at most
+    ``max_iter``; ``None`` before ``warmup`` windows converged."""
+    iters = converged_iterations[: settings.warmup]
+    if settings.failure_iterations is None or len(iters) < settings.warmup:
+        return None
+    return int(min(max_iter, max(settings.min_iterations, settings.failure_iterations * float(np.median(iters)))))
 
 
 class SlidingHorizon:
@@ -129,7 +133,8 @@ class SlidingHorizon:
     Args:
         problem: the problem (its initial state starts the first window).
         sliding: window settings.
-        transcription, solver: discretisation and IPOPT settings.
+        transcription: discretisation settings.
+        solver: IPOPT settings.
         guess: initial guess of the first window (``rest`` or ``physical``).
         study: the TOML text of the study, stored with the run.
         labels: attributes stored with the run (e.g. the paper's cost, S and preset).
@@ -192,14 +197,7 @@ class SlidingHorizon:
                                    lam_g=shifted(previous.lam_g, g_map))
 
     def _iteration_limit(self, state: _State) -> int | None:
-        """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
-        iterations of the first ``warmup`` converged windows (fixed once known, so a resumed run
-        uses the same limit), at least ``min_iterations``."""
-        s = self.sliding
-        iters = [row[4] for row in state.windows if row[3]][: s.warmup]
-        if s.failure_iterations is None or len(iters) < s.warmup:
-            return None
-        return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+        return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)
 
     def _failed_window(self, sol: Any, first_cycle: int, name: str) -> RunResult:
         """The last iterate of a failed window as a run (times from the window's first cycle)."""

@@ -21,7 +21,7 @@ import hashlib
 import os
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, is_str, is_strs, setting
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.ocp.compiled import cached_build, compile_shared, verify_entry
 
@@ -140,45 +141,27 @@ class SolverOptions:
             the optimum stay those of the transcription).
     """
 
-    linear_solver: str = "mumps"
-    tol: float = 1e-6
-    constr_viol_tol: float = 1e-4
-    max_iter: int = 3000
-    max_wall_time: float | None = None
-    print_level: int = 0
-    compile: bool = True
-    compiler: str = "gcc"
-    compiler_flags: tuple[str, ...] = ("-O3", "-march=native")
-    cache_dir: Path | None = None
-    mu_init: float = 1.0
-    perturb_dec_fact: float = 0.6
-    ipopt: dict[str, Any] = field(default_factory=dict)
-    compile_mode: str = "library"
-    compile_jobs: int | None = None
-    accept_acceptable: bool = False
-    derivative_blocks: bool | None = None
-    hessian: str = "exact"
+    linear_solver: str = setting("mumps", "an IPOPT linear solver name (e.g. 'mumps')", is_str)
+    tol: float = setting(1e-6, "a tolerance > 0", lambda v: is_number(v) and v > 0)
+    constr_viol_tol: float = setting(1e-4, "a tolerance > 0", lambda v: is_number(v) and v > 0)
+    max_iter: int = setting(3000, "an integer >= 0", lambda v: int(v) == v and v >= 0)
+    max_wall_time: float | None = setting(None, "seconds > 0", lambda v: is_number(v) and v > 0)
+    print_level: int = setting(0, "an integer 0..12", lambda v: is_int(v) and 0 <= v <= 12)
+    compile: bool = setting(True, "true or false", is_bool)
+    compiler: str = setting("gcc", "a C compiler command", is_str)
+    compiler_flags: tuple[str, ...] = setting(("-O3", "-march=native"), "a list of strings", is_strs)
+    cache_dir: Path | None = setting(None, "a folder", study=False)
+    mu_init: float = setting(1.0, "a barrier parameter > 0", lambda v: is_number(v) and v > 0)
+    perturb_dec_fact: float = setting(0.6, "a factor in (0, 1)", lambda v: is_number(v) and 0 < v < 1)
+    ipopt: dict[str, Any] = setting(default_factory=dict, expected="a table of IPOPT options", check=lambda v: isinstance(v, dict))
+    compile_mode: str = setting("library", "'library' (once per model) or 'nlp' (once per horizon)", lambda v: v in COMPILE_MODES)
+    compile_jobs: int | None = setting(None, "a number of compiler processes >= 1", lambda v: is_int(v) and v >= 1)
+    accept_acceptable: bool = setting(False, "true or false", is_bool)
+    derivative_blocks: bool | None = setting(None, "true or false (none: in library mode)", is_bool)
+    hessian: str = setting("exact", "'exact', 'one-step' or 'gauss-newton'", lambda v: v in HESSIANS)
 
     def __post_init__(self) -> None:
-        if self.hessian not in HESSIANS:
-            raise ParameterError(f"SolverOptions.hessian = {self.hessian!r}: expected one of {list(HESSIANS)}")
-        if self.compile_mode not in COMPILE_MODES:
-            raise ParameterError(f"SolverOptions.compile_mode = {self.compile_mode!r}: expected one of {list(COMPILE_MODES)}")
-        if self.compile_jobs is not None and (isinstance(self.compile_jobs, bool) or not isinstance(self.compile_jobs, int)
-                                              or self.compile_jobs < 1):
-            raise ParameterError(f"SolverOptions.compile_jobs = {self.compile_jobs!r}: expected None or an integer >= 1")
-        for name in ("tol", "constr_viol_tol"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ParameterError(f"SolverOptions.{name} = {value!r}: expected a finite tolerance > 0")
-        if int(self.max_iter) != self.max_iter or self.max_iter < 0:
-            raise ParameterError(f"SolverOptions.max_iter = {self.max_iter!r}: expected an integer >= 0")
-        if not (np.isfinite(self.mu_init) and self.mu_init > 0):
-            raise ParameterError(f"SolverOptions.mu_init = {self.mu_init!r}: expected a barrier parameter > 0")
-        if not (0 < self.perturb_dec_fact < 1):
-            raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
-        if self.max_wall_time is not None and not self.max_wall_time > 0:
-            raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
+        check_fields(self)
 
     @property
     def library_mode(self) -> bool:
@@ -398,7 +381,8 @@ class NlpSolver:
         Args:
             p: parameter vector, shape (n_p,) in Opti's parameter order.
             x0: initial guess, shape (n_x,) in Opti's variable order.
-            lam_x0, lam_g0: initial multipliers (e.g. from a previous solve) for warm starts.
+            lam_x0: initial multipliers of the variable bounds (e.g. from a previous solve), for warm starts.
+            lam_g0: initial multipliers of ``g``, for warm starts.
             max_iter: iteration limit of this solve (default: the options').
             warm_start: IPOPT starts from ``x0`` and the multipliers (:data:`WARM_START_OPTIONS`);
                 without it IPOPT uses only ``x0``.

@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from fatigue_pin.core.errors import FatiguePinError
-from fatigue_pin.io.study import Study, StudyError
+from fatigue_pin.io.study import Study, StudyError, StudyResult
 
 Progress = Callable[[str], None]
 
@@ -255,24 +255,10 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _summarise(study: Study, result: Any) -> dict[str, Any]:
+def _summarise(result: StudyResult) -> dict[str, Any]:
     """Status, repetitions, objective, iterations and run name of a finished run_study."""
-    kind = study.horizon["kind"]
-    if kind == "max-cycles":
-        run = result.run
-        return {"status": "converged" if result.max_cycles > 0 else "not converged", "repetitions": int(result.max_cycles),
-                "objective": float(run.attrs.get("objective", math.nan)) if run is not None else math.nan,
-                "iterations": int(sum(int(r["iterations"]) for r in result.tried)),
-                "run": run.name if run is not None else ""}
-    attrs = result.attrs
-    if kind == "sliding":
-        reps = int(attrs["repetitions"])
-        objective = float(result.cycle_costs.sum()) if result.cycle_costs.size else math.nan
-    else:
-        reps = int(result.n_cycles)
-        objective = float(attrs.get("objective", math.nan))
-    return {"status": "converged" if result.converged else "not converged", "repetitions": reps, "objective": objective,
-            "iterations": int(attrs.get("iterations", -1)), "run": result.name}
+    return {"status": "converged" if result.converged else "not converged", "repetitions": result.repetitions,
+            "objective": result.objective, "iterations": result.iterations, "run": result.run.name if result.run is not None else ""}
 
 
 def partial_path(out_dir: Path, job_id: str) -> Path:
@@ -375,7 +361,7 @@ def run_job(text: str, job_id: str, out_dir: str, cache_dir: str | None = None) 
                 raise
             _remove_leftovers(out, job_id)  # a partial file that cannot be resumed: start again
             result = run_study(study, part, cache_dir=cache_dir)
-        row.update(_summarise(study, result))
+        row.update(_summarise(result))
         row["wall_time_s"] = time.perf_counter() - t0
         if not part.exists():
             h5py.File(part, "w").close()
@@ -555,7 +541,8 @@ def run_sweep(jobs: list[Job], out: str | Path, client: Any = None, cache_dir: s
         retries: Dask retries of a job whose worker raised a file system error.
         progress: called with one line per finished job.
         bar: show a tqdm progress bar on stderr.
-        pending, done: the result of :func:`plan`, when already computed.
+        pending: the jobs still to run, from :func:`plan`, when already computed.
+        done: the jobs already done, from :func:`plan`, when already computed.
     """
     from distributed import as_completed
 
@@ -643,13 +630,19 @@ def slurm_cluster(queue: str | None = None, walltime: str = "01:00:00", cores: i
                         scheduler_options=scheduler_options, **kwargs)
 
 
-def _dashboard(client: Any) -> str | None:
+def _dashboard(client: Any) -> str:
+    """The line saying where the Dask dashboard is, or that it is off: it needs bokeh (the
+    ``dashboard`` extra, ``pip install 'fatigue_pin[dashboard]'``)."""
     try:
         if "dashboard" in client.scheduler_info().get("services", {}):
-            return client.dashboard_link
+            return f"dashboard: {client.dashboard_link}"
     except Exception:  # noqa: BLE001 - no dashboard is not an error
-        return None
-    return None
+        pass
+    import importlib.util
+
+    if importlib.util.find_spec("bokeh") is None:
+        return "dashboard: off (it needs bokeh: pip install 'fatigue_pin[dashboard]')"
+    return "dashboard: off (the scheduler serves none)"
 
 
 def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None = None, slurm: bool = False,
@@ -694,9 +687,7 @@ def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None
             cluster = local_cluster(workers)
             client = Client(cluster)
         try:
-            link = _dashboard(client)
-            if link:
-                progress(f"dashboard: {link}")
+            progress(_dashboard(client))
             outcome = run_sweep(jobs, out, client, cache_dir=cache_dir, retries=retries, progress=progress, bar=bar,
                                 pending=pending, done=done)
         finally:
