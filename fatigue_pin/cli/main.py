@@ -228,7 +228,7 @@ def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration limit per solve (default 3000)")
     p.add_argument("--no-compile", action="store_true", help="evaluate the NLP without generating and compiling C")
     p.add_argument("--print-level", type=int, default=0, help="IPOPT print level")
-    p.add_argument("--urdf", type=Path, default=None, help="URDF file (default: bundled arm26)")
+    p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     _add_output_arguments(p)
 
 
@@ -247,7 +247,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("info", help="print the model summary: joints, masses, bounds, holding torques")
-    p.add_argument("--urdf", type=Path, default=None, help="URDF file (default: bundled arm26)")
+    p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("forward", help="forward studies of the 3CC / 3CC-S fatigue model (paper section 2)")

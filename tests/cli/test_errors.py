@@ -116,6 +116,9 @@ def _sliding(window: int, max_cycles: int):
     return mutate
 
 
+_ELBOW_LIMIT = '<limit lower="0.0" upper="3.141592653589793" effort="50.0" velocity="31.41592653589793"/>'
+
+
 def _zero_mass(text: str) -> str:
     text = re.sub(r'<mass value="[0-9.eE+-]+"\s*/>', '<mass value="0"/>', text)
     return re.sub(r"<inertia [^/]*/>", '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>', text)
@@ -221,6 +224,27 @@ CASES: list[Case] = [
              'lower="0.0" upper="3.141592653589793" effort="50.0"', 'lower="0.0" upper="3.141592653589793" effort="0"'))]),
     Case("urdf-zero-mass", URDF, "links of zero mass (in a study's `model.urdf`)", r"joint 'shoulder' moves no mass",
          _run(lambda e: e.study(_set("model", "urdf", e.urdf(_zero_mass, "massless.urdf"))))),
+    Case("urdf-is-folder", URDF, "a URDF path that is a folder", r"URDF path '.*' is a folder; expected the path of a .urdf file",
+         lambda e: ["info", "--urdf", str(e.tmp)]),
+    Case("urdf-empty-path", URDF, "`run --set model.urdf=` (empty)", r"model '' is empty; expected a bundled model",
+         lambda e: ["run", e.study(), "--set", "model.urdf=", "--out", str(e.existing)]),
+    Case("urdf-negative-mass", URDF, "a link of negative mass", r"link 'humerus' has mass -1.86457; expected a mass >= 0",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('<mass value="1.864572"/>', '<mass value="-1.864572"/>'))]),
+    Case("urdf-negative-inertia", URDF, "a link with a negative moment of inertia", r"link 'humerus' has ixx = -0.01481; expected moments",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('ixx="0.01481"', 'ixx="-0.01481"'))]),
+    Case("urdf-lower-above-upper", URDF, "a lower limit above the upper limit", r"joint 'elbow' has lower limit 2 above its upper limit 1",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="2" upper="1"'))]),
+    Case("urdf-nan-limit", URDF, "a NaN limit", r"joint \[elbow\]: <limit upper='nan'>: expected a finite number",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="0.0" upper="nan"'))]),
+    Case("urdf-word-for-number", URDF, "a word where a number belongs", r"joint \[elbow\]: <limit lower='zero'>: expected a finite number",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="zero" upper="3"'))]),
+    Case("urdf-vector-size", URDF, "an `<origin xyz>` of two numbers", r"<origin xyz='0.0061 -0.2904'>: expected 3 finite numbers",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('xyz="0.0061 -0.2904 -0.0123"', 'xyz="0.0061 -0.2904"'))]),
+    Case("urdf-duplicate-joint", URDF, "two joints of the same name", r"two joints are named 'shoulder'; expected unique joint names",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="elbow" type="revolute"', 'name="shoulder" type="revolute"'))]),
+    Case("urdf-unknown-joint-type", URDF, "a joint of an unknown type (the parser's own message, on one line)",
+         r"does not parse: Joint \[elbow\] has no known type \[weird\]",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="elbow" type="revolute"', 'name="elbow" type="weird"'))]),
     # -- study files -------------------------------------------------------------------------------
     Case("study-not-toml", STUDY, "a study file that is not TOML", r"is not valid TOML",
          lambda e: ["run", e.write("bad.toml", "name = \n[model"), "--out", str(e.existing)]),
