@@ -148,6 +148,7 @@ def _run(study: Callable[[Env], str]) -> Callable[[Env], list[str]]:
 
 
 CLI, PATHS, URDF, STUDY, API, FILES = "command line", "paths", "URDF", "study file", "Python API", "result files"
+FATIGUE = "fatigue data"
 
 CASES: list[Case] = [
     # -- the command line ----------------------------------------------------------------------
@@ -320,6 +321,23 @@ CASES: list[Case] = [
          lambda e: ["replay", str(e.existing), "--html", e.path("r.html")]),
     Case("rerun-without-study", FILES, "`rerun` a run built in Python (no stored study)", r"holds no run with a stored study",
          lambda e: ["rerun", str(e.existing), "--out", str(e.existing)]),
+    # -- fatigue data: presets, endurance CSVs, endurance tasks ------------------------------------
+    Case("preset-json-shape", FATIGUE, "a preset JSON whose `model` is a list", r"model = \['3cc'\]: expected one of",
+         lambda e: ["endurance", "--preset", e.write("p.json", '{"model": ["3cc"], "F": 0.01, "R": 0.001, "LD": 10, "LR": 10}'),
+                    "--loads", "0.5", "--no-compare", "--out", e.path("endurance")]),
+    Case("csv-duplicated-column", FATIGUE, "an endurance CSV with a column twice",
+         r"column\(s\) \['target_load'\] appear more than once",
+         lambda e: ["calibrate", e.write("d.csv", "target_load,endurance_time_s,target_load\n0.5,100,0.6\n0.3,300,0.4\n"),
+                    "--out", e.path("p.json")]),
+    Case("csv-tiny-times", FATIGUE, "endurance times of 1e-300 s (the fit would overflow)",
+         r"endurance_time_s = 1e-300: expected a time in \[0.001, 1e\+09\) s",
+         lambda e: ["calibrate", e.write("d.csv", "target_load,endurance_time_s\n0.5,1e-300\n0.3,2e-300\n"), "--out", e.path("p.json")]),
+    Case("empty-loads", FATIGUE, "`endurance --loads ,` (no load)", r"--loads ',': expected comma-separated fractions",
+         lambda e: ["endurance", "--loads", ",", "--out", e.path("endurance")]),
+    Case("endurance-too-many-cycles", FATIGUE, "an intermittent task of 0.01 s cycles beyond `--max-cycles 20`",
+         r"max_cycles = 20 cycles of 0.01 s \(0.2 s\) simulated at TL = 0.5 without failure",
+         lambda e: ["endurance", "--loads", "0.5", "--duty-cycle", "0.5", "--cycle-s", "0.01", "--max-cycles", "20",
+                    "--no-compare", "--out", e.path("endurance")]),
     # -- the Python API ----------------------------------------------------------------------------
     Case("x-init-sum", API, "`Problem(..., x_init)` with ma + mr + mf = 1.5 on a half",
          r"x_init of actuator half 'shoulder_plus': ma = 0.5, mr = 1, mf = 0; ma \+ mr \+ mf = 1.5, expected 1",
