@@ -76,8 +76,8 @@ _API: dict[str, str] = {
     # checks, sweeps, views
     "verify_run": "fatigue_pin.verify.check",
     "VerifyTolerances": "fatigue_pin.verify.check",
-    "Sweep": "fatigue_pin.sweep.jobs",
-    "run_sweep": "fatigue_pin.sweep.jobs",
+    "Sweep": "fatigue_pin.sweep.plan",
+    "run_sweep": "fatigue_pin.sweep.runner",
     "plot_run": "fatigue_pin.viz.plots",
     "plot_file": "fatigue_pin.viz.plots",
     "export_html": "fatigue_pin.viz.replay",

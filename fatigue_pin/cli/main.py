@@ -188,7 +188,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from fatigue_pin.sweep.jobs import sweep_command
+    from fatigue_pin.sweep.runner import sweep_command
 
     return sweep_command(args.sweep, args.out, scheduler=args.scheduler, slurm=args.slurm, workers=args.workers,
                          queue=args.queue, walltime=args.walltime, cores=args.cores, memory=args.memory,

@@ -253,10 +253,8 @@ def endurance_time(
         _check_solve(out, model, TL)
         return float(out.t_events[0][0]) if out.t_events[0].size else math.inf
 
-    T = float(cycle_s)
     if isinstance(max_cycles, bool) or not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1:
         raise ParameterError(f"endurance_time: max_cycles = {max_cycles!r}: expected an integer number of cycles >= 1")
-    report = as_reporter(progress)
     f_off, J_off = _fixed_functions(model, 0.0)
 
     def ma_negative(t: float, y: np.ndarray) -> float:
@@ -267,32 +265,54 @@ def endurance_time(
     off_opts = dict(method=method, rtol=rtol, atol=atol, events=ma_negative)
     if method in ("Radau", "BDF", "LSODA"):
         off_opts["jac"] = J_off
-    t0 = 0.0
-    margins: list[float] = []
-    while t0 < t_max:
-        if len(margins) >= max_cycles:
-            raise ParameterError(
-                f"endurance_time: max_cycles = {max_cycles} cycles of {T:g} s ({max_cycles * T:g} s) simulated at TL = {TL:g} "
-                f"without failure or a steady state (margin ma + mr - TL = {margins[-1]:.3g}); expected a task that fails "
-                "or settles within max_cycles: raise max_cycles (--max-cycles) or lengthen the cycle"
-            )
-        if margins and len(margins) % PROGRESS_EVERY == 0:
-            report.line(f"  TL = {TL:g}: cycle {len(margins)} of at most {max_cycles} (t = {t0:g} s), "
-                        f"margin ma + mr - TL = {margins[-1]:.4g}")
-        t_on_end = min(t0 + d * T, t_max)
-        out = solve_ivp(f_on, (t0, t_on_end), y, **opts)
-        _check_solve(out, model, TL)
-        if out.t_events[0].size:
-            return float(out.t_events[0][0])
-        y = out.y[:, -1]
-        if t_on_end >= t_max:
-            break
-        margins.append(float(y[ia] + y[ir] - TL))
-        if steady_stop and _settles_above(margins):
-            return math.inf
-        y = _rest(f_off, off_opts, y, t_on_end, t0 + T, ia, model)
-        t0 += T
-    return math.inf
+    cycle = _Cycle(model, TL, d, float(cycle_s), f_on, opts, f_off, off_opts, ia, ir)
+    return cycle.run(y, float(t_max), steady_stop, int(max_cycles), as_reporter(progress))
+
+
+@dataclass
+class _Cycle:
+    """One cycle of an intermittent task: "on" at ``TL`` for ``d * T`` s, then a rest; ``run``
+    repeats it (see :func:`endurance_time`)."""
+
+    model: FatigueModel
+    TL: float
+    d: float
+    T: float
+    f_on: object
+    opts: dict
+    f_off: object
+    off_opts: dict
+    ia: int
+    ir: int
+
+    def run(self, y: np.ndarray, t_max: float, steady_stop: bool, max_cycles: int, report) -> float:
+        TL, T = self.TL, self.T
+        t0 = 0.0
+        margins: list[float] = []
+        while t0 < t_max:
+            if len(margins) >= max_cycles:
+                raise ParameterError(
+                    f"endurance_time: max_cycles = {max_cycles} cycles of {T:g} s ({max_cycles * T:g} s) simulated at TL = {TL:g} "
+                    f"without failure or a steady state (margin ma + mr - TL = {margins[-1]:.3g}); expected a task that fails "
+                    "or settles within max_cycles: raise max_cycles (--max-cycles) or lengthen the cycle"
+                )
+            if margins and len(margins) % PROGRESS_EVERY == 0:
+                report.line(f"  TL = {TL:g}: cycle {len(margins)} of at most {max_cycles} (t = {t0:g} s), "
+                            f"margin ma + mr - TL = {margins[-1]:.4g}")
+            t_on_end = min(t0 + self.d * T, t_max)
+            out = solve_ivp(self.f_on, (t0, t_on_end), y, **self.opts)
+            _check_solve(out, self.model, TL)
+            if out.t_events[0].size:
+                return float(out.t_events[0][0])
+            y = out.y[:, -1]
+            if t_on_end >= t_max:
+                break
+            margins.append(float(y[self.ia] + y[self.ir] - TL))
+            if steady_stop and _settles_above(margins):
+                return math.inf
+            y = _rest(self.f_off, self.off_opts, y, t_on_end, t0 + T, self.ia, self.model)
+            t0 += T
+        return math.inf
 
 
 def _rest(f_off, off_opts: dict, y: np.ndarray, t_a: float, t_b: float, ia: int, model: FatigueModel) -> np.ndarray:

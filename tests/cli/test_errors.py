@@ -71,6 +71,11 @@ class Env:
 
         return self.write(name, change(bundled_urdf().read_text()))
 
+    def sweep(self) -> str:
+        """A sweep file of two jobs over the small curl."""
+        self.write("base.toml", to_toml(BASE))
+        return self.write("sweep.toml", 'base = "base.toml"\n[grid]\n"fatigue.S" = [0.0, 10.0]\n')
+
     def result(self, name: str, layout: int | None = None, truncate: bool = False) -> str:
         import h5py
 
@@ -85,6 +90,27 @@ class Env:
             p.write_bytes(data[: len(data) // 2])
         self.watched.append(p)
         return str(p)
+
+
+def _banner_server() -> str:
+    """The address of a server on 127.0.0.1 that sends an SSH banner to its one connection."""
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    listener.settimeout(30)
+
+    def serve() -> None:
+        with listener:
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                return
+            with conn:
+                conn.sendall(b"SSH-2.0-OpenSSH_9.2p1\r\n")
+
+    threading.Thread(target=serve, daemon=True).start()
+    return f"tcp://127.0.0.1:{listener.getsockname()[1]}"
 
 
 def _set(*keys_value):
@@ -148,7 +174,7 @@ def _run(study: Callable[[Env], str]) -> Callable[[Env], list[str]]:
 
 
 CLI, PATHS, URDF, STUDY, API, FILES = "command line", "paths", "URDF", "study file", "Python API", "result files"
-FATIGUE = "fatigue data"
+FATIGUE, SWEEP = "fatigue data", "sweeps"
 
 CASES: list[Case] = [
     # -- the command line ----------------------------------------------------------------------
@@ -338,6 +364,12 @@ CASES: list[Case] = [
          r"max_cycles = 20 cycles of 0.01 s \(0.2 s\) simulated at TL = 0.5 without failure",
          lambda e: ["endurance", "--loads", "0.5", "--duty-cycle", "0.5", "--cycle-s", "0.01", "--max-cycles", "20",
                     "--no-compare", "--out", e.path("endurance")]),
+    # -- sweeps on an existing Dask scheduler -----------------------------------------------------
+    Case("scheduler-malformed", SWEEP, "`sweep --scheduler tcp://127.0.0.1:http`", r"--scheduler 'tcp://127.0.0.1:http': expected tcp://HOST:PORT",
+         lambda e: ["sweep", e.sweep(), "--scheduler", "tcp://127.0.0.1:http", "--out", e.path("sweep")]),
+    Case("scheduler-other-protocol", SWEEP, "`sweep --scheduler` a port that answers with an SSH banner",
+         r"--scheduler 'tcp://127.0.0.1:\d+' answered 'SSH-2.0-OpenSSH_9.2p1', another protocol; expected a Dask scheduler",
+         lambda e: ["sweep", e.sweep(), "--scheduler", _banner_server(), "--out", e.path("sweep")]),
     # -- the Python API ----------------------------------------------------------------------------
     Case("x-init-sum", API, "`Problem(..., x_init)` with ma + mr + mf = 1.5 on a half",
          r"x_init of actuator half 'shoulder_plus': ma = 0.5, mr = 1, mf = 0; ma \+ mr \+ mf = 1.5, expected 1",
