@@ -20,6 +20,7 @@ import numpy as np
 from fatigue_pin.ocp.problem import Problem, StateLayout
 from fatigue_pin.io.results import RunResult, list_runs, read_run, read_search, torque_limits_at_cycle_ends, write_run, write_search
 from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.task import check_horizon
 from fatigue_pin.ocp.transcription import IntervalFunctions, Ocp, OcpSolution, Transcription
 
 from fatigue_pin.core.progress import Progress, as_reporter
@@ -157,6 +158,7 @@ def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | N
     """Build and solve one full-horizon OCP of ``n_cycles`` cycles (``progress``: a Reporter or
     a line callback; default quiet). ``end_tolerance``: bound q and qdot at the last node to the
     initial state +- this fraction of their range (the authors' full horizon does, with 0.01)."""
+    check_horizon(problem.task, n_cycles)
     rep = as_reporter(progress)
     rep.line(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
     ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles, end_tolerance)
@@ -240,6 +242,8 @@ def max_repetitions(
     infeasibility (IPOPT's certificate, a failed restoration, a growing constraint violation) is
     told from non-convergence (iteration or time limit) and from a broken step computation.
     """
+    if n_max is not None:
+        check_horizon(problem.task, n_max, "n_max")
     rep = as_reporter(progress)
     build = OcpBuilder(problem, transcription, solver, guess, rep)
     bar = rep.bar(None, "search steps", "solve")

@@ -31,7 +31,24 @@ from typing import Sequence, Union
 import casadi as ca
 import numpy as np
 
-from fatigue_pin.core.errors import TaskError
+from fatigue_pin.core.errors import ParameterError, TaskError
+
+#: Most shooting intervals of one OCP (a cycle, or all the cycles of a horizon): beyond it the
+#: NLP would not fit in memory (arm26: 16 states and 4 controls per interval).
+MAX_INTERVALS = 1_000_000
+
+
+def check_horizon(task: "Task", n_cycles: object, what: str = "cycles") -> int:
+    """``n_cycles`` as an int, once it is a whole number >= 1 whose OCP (``n_cycles *
+    intervals_per_cycle`` intervals) stays within :data:`MAX_INTERVALS`; ParameterError naming
+    ``what`` otherwise (checked before anything is built or compiled)."""
+    if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
+        raise ParameterError(f"{what} = {n_cycles!r}: expected an integer number of cycles >= 1")
+    n = int(n_cycles)
+    if n * task.intervals_per_cycle > MAX_INTERVALS:
+        raise ParameterError(f"{what} = {n}: {n} cycles of {task.intervals_per_cycle} intervals are {n * task.intervals_per_cycle} "
+                             f"shooting intervals; expected at most {MAX_INTERVALS} in one OCP")
+    return n
 
 
 def _finite(owner: str, name: str, value: object, what: str = "a finite number") -> float:
@@ -351,6 +368,8 @@ class Task:
         n = self.intervals_per_cycle
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer >= 1")
+        if n > MAX_INTERVALS:
+            raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer in [1, {MAX_INTERVALS}]")
         object.__setattr__(self, "intervals_per_cycle", int(n))
         object.__setattr__(self, "items", tuple(self.items))
         for item in self.items:

@@ -42,12 +42,16 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.problem import Problem, StateLayout
 from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solver import NlpResult, NlpSolver, SolverOptions, simple_bounds
-from fatigue_pin.ocp.task import joint_target_pairs
+from fatigue_pin.ocp.task import check_horizon, joint_target_pairs
 
 #: Integrators of the shooting intervals.
 INTEGRATORS = ("rk4",)
 #: How interval functions are mapped over the horizon.
 MAP_MODES = ("auto", "serial", "openmp", "thread")
+
+
+#: Most integrator steps per shooting interval (each is unrolled in the interval's expression).
+MAX_SUBSTEPS = 1000
 
 
 @dataclass(frozen=True)
@@ -81,8 +85,8 @@ class Transcription:
     target_rows: bool = False
 
     def __post_init__(self) -> None:
-        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, np.integer)) or self.substeps < 1:
-            raise ParameterError(f"Transcription.substeps = {self.substeps!r}: expected an integer >= 1")
+        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, np.integer)) or not 1 <= self.substeps <= MAX_SUBSTEPS:
+            raise ParameterError(f"Transcription.substeps = {self.substeps!r}: expected an integer in [1, {MAX_SUBSTEPS}]")
         if self.integrator not in INTEGRATORS:
             raise ParameterError(f"Transcription.integrator = {self.integrator!r}: expected one of {list(INTEGRATORS)}")
         if self.parallel not in MAP_MODES:
@@ -331,8 +335,7 @@ class Ocp:
         progress: Progress = None,
     ) -> None:
         t0 = time.perf_counter()
-        if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
-            raise ParameterError(f"n_cycles = {n_cycles!r}: expected an integer >= 1")
+        check_horizon(problem.task, n_cycles, "n_cycles")
         if end_tolerance is not None and not (0 <= end_tolerance < 1):
             raise ParameterError(f"end_tolerance = {end_tolerance!r}: expected a fraction in [0, 1) or None")
         if guess not in GUESSES:

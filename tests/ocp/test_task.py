@@ -125,3 +125,17 @@ def test_x_init_must_meet_the_phase_0_targets():
         problem.with_x_init(x)
     x[1] -= 0.2
     assert np.array_equal(problem.with_x_init(x).initial_state(), x)
+
+
+def test_horizon_size_is_bounded_before_anything_is_built():
+    from fatigue_pin.core.errors import ParameterError
+    from fatigue_pin.ocp.task import MAX_INTERVALS, check_horizon
+
+    task = Task(1.0, 10)
+    assert check_horizon(task, MAX_INTERVALS // 10) == MAX_INTERVALS // 10
+    for bad, match in ((MAX_INTERVALS // 10 + 1, "expected at most 1000000 in one OCP"), (10**20, "shooting intervals"),
+                       (0, "expected an integer number of cycles >= 1"), (2.0, "expected an integer"), (True, "expected an integer")):
+        with pytest.raises(ParameterError, match=match):
+            check_horizon(task, bad)
+    with pytest.raises(TaskError, match=r"intervals_per_cycle = 1000001: expected an integer in \[1, 1000000\]"):
+        Task(1.0, MAX_INTERVALS + 1)
