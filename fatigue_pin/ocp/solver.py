@@ -17,6 +17,7 @@ into an ``nlpsol`` once and re-solves it with new parameter values as often as n
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import tempfile
@@ -190,12 +191,85 @@ class SolverOptions:
         ipopt.update(self.ipopt)
         return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
 
+    def check_ipopt(self) -> None:
+        """Refuse, before any work, IPOPT options that IPOPT would reject or that cannot work on
+        this machine (:func:`check_ipopt_options`: unknown options, values of the wrong type or
+        out of range, a linear solver IPOPT does not know or cannot load)."""
+        check_ipopt_options(tuple(sorted((k, repr(v)) for k, v in self.ipopt_options()["ipopt"].items())))
+
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-NLP cache."""
         if self.cache_dir is not None:
             return Path(self.cache_dir)
         env = os.environ.get("FATIGUE_PIN_CACHE")
         return Path(env) if env else Path.home() / ".cache" / "fatigue_pin"
+
+
+def _ipopt_refusal(name: str, value: Any, said: list[str], exc: Exception) -> ParameterError:
+    """The one-line error of an option that IPOPT refused, from IPOPT's own lines (``said``)."""
+    key = "solver.linear_solver" if name == "linear_solver" else f"solver.ipopt.{name}"
+    text = " ".join(str(exc).split())
+    if "No such IPOPT option" in text:
+        return ParameterError(f"{key}: IPOPT has no option {name!r}; expected an IPOPT option name (IPOPT's options reference)")
+    if "type mismatch" in text:
+        return ParameterError(f"{key} = {value!r}: IPOPT expects another type of value for {name!r}")
+    settings = [line.split()[0] for line in said if line.split() and not line.startswith(("Setting:", "###", "Category:",
+                                                                                            "Description:", "Valid", "Default:"))]
+    ranges = [line for line in said if "<" in line and "(" in line]
+    if ranges:
+        expected = f"a value in {ranges[0].split('(')[0].strip()} ... {ranges[0].split(')')[-1].strip()}"
+    elif settings:
+        expected = f"one of {settings}"
+    else:
+        expected = "a valid setting (IPOPT's options reference)"
+    return ParameterError(f"{key} = {value!r}: not a valid IPOPT setting; expected {expected}")
+
+
+@functools.lru_cache(maxsize=64)
+def check_ipopt_options(items: tuple[tuple[str, str], ...]) -> None:
+    """Check IPOPT options (``(name, repr(value))`` pairs, hashable so that a set of options is
+    checked once per process) on a one-variable NLP: each option alone when IPOPT refuses the
+    set (IPOPT names neither the option nor the value), then one solve of zero iterations, which
+    fails with ``Invalid_Option`` when the linear solver cannot be loaded (an HSL solver without
+    its library). IPOPT's own lines are kept for the message instead of reaching the terminal.
+
+    Raises:
+        ParameterError: one line naming the option, its value and what is expected.
+    """
+    from fatigue_pin.core.streams import captured
+
+    import ast
+
+    options = {name: ast.literal_eval(value) for name, value in items}
+    x = ca.SX.sym("x")
+    nlp = {"x": x, "f": (x - 1) ** 2, "g": x}
+
+    def build(opts: dict[str, Any]) -> ca.Function:
+        return ca.nlpsol("fatigue_pin_option_check", "ipopt", nlp, {"ipopt": opts, "print_time": False, "error_on_fail": False})
+
+    with captured(1) as said:
+        try:
+            solver = build({**options, "max_iter": 0, "print_level": 5})  # level 5: IPOPT says why a library fails to load
+        except RuntimeError:
+            solver = None
+    if solver is None:
+        for name, value in options.items():
+            with captured(1) as said:
+                try:
+                    build({name: value, "print_level": 0, "sb": "yes"})
+                except RuntimeError as exc:
+                    failure = exc
+                else:
+                    continue
+            raise _ipopt_refusal(name, value, said, failure)
+        raise ParameterError(f"IPOPT refuses the options {options}; expected options IPOPT accepts together")
+    with captured(1) as said:
+        solver(x0=0.0, lbg=-10.0, ubg=10.0)
+    if solver.stats().get("return_status") == "Invalid_Option":
+        why = next((line.removeprefix("Exception message:").strip() for line in said if line.startswith("Exception message:")),
+                   "IPOPT cannot load it")
+        raise ParameterError(f"solver.linear_solver = {options.get('linear_solver')!r} cannot be used on this machine ({why}); "
+                             "expected an installed linear solver, e.g. 'mumps' (ships with CasADi)")
 
 
 @dataclass

@@ -336,6 +336,7 @@ class Ocp:
     ) -> None:
         t0 = time.perf_counter()
         check_horizon(problem.task, n_cycles, "n_cycles")
+        (solver or SolverOptions()).check_ipopt()  # before anything is built or compiled
         if end_tolerance is not None and not (0 <= end_tolerance < 1):
             raise ParameterError(f"end_tolerance = {end_tolerance!r}: expected a fraction in [0, 1) or None")
         if guess not in GUESSES:

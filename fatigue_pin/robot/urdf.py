@@ -21,15 +21,12 @@ error message.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import Iterator
 
 from fatigue_pin.core.errors import ModelError
+from fatigue_pin.core.streams import captured
 
 __all__ = ["check_urdf_text", "check_mimic_joints", "quiet_stderr"]
 
@@ -165,24 +162,6 @@ def check_mimic_joints(mimics: dict[str, str], locked: object, path: Path) -> No
         )
 
 
-@contextlib.contextmanager
-def quiet_stderr() -> Iterator[list[str]]:
-    """Redirect the process's standard error (file descriptor 2, where C++ libraries write) to a
-    temporary file for the duration of the block; the yielded list receives its non-empty lines
-    at the end (for an error message)."""
-    lines: list[str] = []
-    with tempfile.TemporaryFile(mode="w+b") as tmp:
-        try:
-            saved = os.dup(2)
-        except OSError:  # no standard error to redirect
-            yield lines
-            return
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            text = tmp.read().decode("utf-8", "replace")
-            lines += [line.strip() for line in text.splitlines() if line.strip()]
+def quiet_stderr():
+    """The process's standard error captured for the block (:func:`fatigue_pin.core.streams.captured`)."""
+    return captured(2)
