@@ -470,8 +470,19 @@ class Study:
         path = Path(path)
         if path.is_dir():
             raise StudyError(f"study file {str(path)!r} is a folder; expected a .toml study file or an HDF5 result file")
-        if not path.is_file():
+        if not path.exists():
             raise StudyError(f"study file not found: {str(path)!r}; expected a .toml study file or an HDF5 result file")
+        if not path.is_file():  # a pipe (/dev/stdin, <(...)): read it once, as TOML
+            try:
+                data = path.read_bytes()
+            except OSError as exc:
+                raise StudyError(f"study file {str(path)!r} cannot be read ({exc.strerror}); expected a .toml study file") from None
+            if data.startswith(b"\x89HDF"):
+                raise StudyError(f"study {str(path)!r} is an HDF5 file read from a pipe; expected it as a file path")
+            try:
+                return cls.from_toml(data.decode(), repr(str(path)))
+            except UnicodeDecodeError:
+                raise StudyError(f"{str(path)!r} is neither a TOML study nor an HDF5 result file") from None
         head = path.read_bytes()[:8]
         if head.startswith(b"\x89HDF"):
             from fatigue_pin.io.results import read_run

@@ -153,3 +153,25 @@ def test_set_changes_a_key_of_the_study(tmp_path):
     stored = Study.from_toml(run.study)
     assert stored.data["fatigue"]["S"] == 0 and stored.data["costs"]["torque"]["weight"] == 0
     assert run.attrs["S"] == 0.0 and math.isfinite(run.attrs["objective"])
+
+
+def test_a_study_read_from_a_pipe(tmp_path):
+    """``fatigue-pin run /dev/stdin`` (a pipe, not a regular file) reads the study; a pipe that
+    carries no TOML gets the usual one-line error."""
+    import os
+    import threading
+
+    text = small_curl("full").to_toml()
+    for payload, expected in ((text, None), ("name = \n[model", "is not valid TOML")):
+        fifo = tmp_path / "pipe"
+        if fifo.exists():
+            fifo.unlink()
+        os.mkfifo(fifo)
+        writer = threading.Thread(target=lambda p=payload: fifo.write_text(p), daemon=True)
+        writer.start()
+        if expected is None:
+            assert Study.from_file(fifo).to_toml() == text
+        else:
+            with pytest.raises(StudyError, match=expected):
+                Study.from_file(fifo)
+        writer.join(5)
