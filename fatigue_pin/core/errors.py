@@ -2,7 +2,13 @@
 
 
 class FatiguePinError(Exception):
-    """Base class of all fatigue_pin errors."""
+    """Base class of all fatigue_pin errors. A message is one line: line breaks that reach it
+    from the input (a key or a value holding a newline) are written ``\\n``."""
+
+    def __init__(self, *args: object) -> None:
+        if args and isinstance(args[0], str):
+            args = (args[0].replace("\r", "\\r").replace("\n", "\\n"),) + args[1:]
+        super().__init__(*args)
 
 
 class ModelError(FatiguePinError, ValueError):

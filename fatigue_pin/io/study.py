@@ -264,7 +264,7 @@ def _fill(table: Any, schema: dict[str, Check], where: str) -> dict[str, Any]:
         raise StudyError(f"unknown key {where}.{unknown[0]}; expected one of {sorted(schema)}")
     out: dict[str, Any] = {}
     for key, (check, what, default) in schema.items():
-        if key in table:
+        if key in table and table[key] is not None:  # None (Python only; TOML has no null): not given
             value = table[key]
             if value is not None and not check(value):
                 raise StudyError(f"{where}.{key} = {value!r}: expected {what}")
@@ -326,7 +326,7 @@ def _costs_table(table: Any) -> dict[str, Any]:
             raise StudyError(f"costs.{name} = {spec!r}: expected a weight or a table {{ weight = ..., ... }}")
         spec = dict(spec)
         kind = spec.setdefault("kind", name)
-        if kind not in COST_KINDS:
+        if not isinstance(kind, str) or kind not in COST_KINDS:
             raise StudyError(f"costs.{name}: cost kind {kind!r} is unknown; expected one of {sorted(COST_KINDS)}")
         if "weight" not in spec:
             raise StudyError(f"missing key costs.{name}.weight: expected a weight >= 0")

@@ -148,18 +148,26 @@ class SolverOptions:
         if self.compile_jobs is not None and (isinstance(self.compile_jobs, bool) or not isinstance(self.compile_jobs, int)
                                               or self.compile_jobs < 1):
             raise ParameterError(f"SolverOptions.compile_jobs = {self.compile_jobs!r}: expected None or an integer >= 1")
+        def number(value: object) -> bool:
+            return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)) and bool(np.isfinite(value))
+
         for name in ("tol", "constr_viol_tol"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
+            if not (number(value) and value > 0):
                 raise ParameterError(f"SolverOptions.{name} = {value!r}: expected a finite tolerance > 0")
-        if int(self.max_iter) != self.max_iter or self.max_iter < 0:
+        if not number(self.max_iter) or int(self.max_iter) != self.max_iter or self.max_iter < 0:
             raise ParameterError(f"SolverOptions.max_iter = {self.max_iter!r}: expected an integer >= 0")
-        if not (np.isfinite(self.mu_init) and self.mu_init > 0):
+        if not (number(self.mu_init) and self.mu_init > 0):
             raise ParameterError(f"SolverOptions.mu_init = {self.mu_init!r}: expected a barrier parameter > 0")
-        if not (0 < self.perturb_dec_fact < 1):
+        if not (number(self.perturb_dec_fact) and 0 < self.perturb_dec_fact < 1):
             raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
-        if self.max_wall_time is not None and not self.max_wall_time > 0:
+        if self.max_wall_time is not None and not (number(self.max_wall_time) and self.max_wall_time > 0):
             raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
+        if isinstance(self.print_level, bool) or not isinstance(self.print_level, (int, np.integer)) or not 0 <= self.print_level <= 12:
+            raise ParameterError(f"SolverOptions.print_level = {self.print_level!r}: expected an integer in [0, 12]")
+        if not isinstance(self.linear_solver, str) or not isinstance(self.ipopt, dict):
+            raise ParameterError(f"SolverOptions.linear_solver = {self.linear_solver!r}, ipopt = {self.ipopt!r}: expected a name "
+                                 "and a table of IPOPT options")
 
     @property
     def library_mode(self) -> bool:
