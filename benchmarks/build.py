@@ -27,7 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from fatigue_pin.drivers.full import OcpBuilder, max_repetitions
+from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.drivers.search import max_repetitions
 from fatigue_pin.paper.curl import curl_study
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions

@@ -8,12 +8,12 @@ Usage: python benchmarks/full_horizon.py [--cycles 4 8 16 32] [--repeats 3] [--c
 Each horizon is built once (the compiled NLP is cached; the first build on a machine includes
 the compile time, shown apart) and solved ``--repeats`` times from the same initial guess; the
 table shows medians. ``--guess resample`` starts every horizon from the previous row's solution
-stretched in time (``fatigue_pin.drivers.full.resample_guess``, as the maximum-repetitions search does);
+stretched in time (``fatigue_pin.ocp.guesses.resample_guess``, as the maximum-repetitions search does);
 the first row starts from rest. The default preset is ``authors-code``, the values behind the
 paper's 32 repetitions (with the text's R = 0.00094 the arm cannot do 32). The last columns are
 IPOPT's wall time per call of the Lagrangian's Hessian and of the constraint Jacobian.
 
-Reference (SPEC / issue 4): the paper's own code on this kind of machine took 3.96 s for 1 cycle
+Reference (issue 4): the paper's own code on this kind of machine took 3.96 s for 1 cycle
 and 13.6 s for 3 cycles (~4.5 s per cycle, 0.27 s per iteration at 3 cycles).
 """
 
@@ -24,7 +24,8 @@ import dataclasses
 import os
 import statistics
 
-from fatigue_pin.drivers.full import OcpBuilder, resample_guess
+from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.ocp.guesses import resample_guess
 from fatigue_pin.paper.curl import curl_study
 
 PAPER_CODE_S_PER_CYCLE = 13.6 / 3

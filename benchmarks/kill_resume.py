@@ -40,9 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = textwrap.dedent(
     """
     import os, sys, time
-    import fatigue_pin.drivers.full as F
     import fatigue_pin.io.results as R
-    import fatigue_pin.drivers.sliding as S
     from fatigue_pin.paper.curl import curl_study
     from fatigue_pin.io.study import run_study
 
@@ -56,7 +54,7 @@ CHILD = textwrap.dedent(
         say("IO " + tag)
         time.sleep(PAUSE)
 
-    real_clone, real_compact, real_fsync, real_replace, real_group = R._clone, R._compact, R._fsync, os.replace, R._write_run
+    real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, R.fsync, os.replace, R._write_run
 
     def clone(src, dst):
         announce("copy")
@@ -80,7 +78,7 @@ CHILD = textwrap.dedent(
         announce("rename")
         real_replace(a, b)
 
-    R._clone, R._compact, R._write_run, R._fsync, os.replace = clone, compact, group, fsync, replace
+    R.clone, R._compact, R._write_run, R.fsync, os.replace = clone, compact, group, fsync, replace
 
     def wrote(module, name, tag):
         real = getattr(module, name)
@@ -92,9 +90,12 @@ CHILD = textwrap.dedent(
 
         setattr(module, name, call)
 
-    wrote(S, "write_run", "window")
-    wrote(F, "write_search", "search")
     kind, out, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+    # every write of a driver goes through its store: a sliding run's windows, a search's table
+    if kind == "max-cycles":
+        wrote(R.ResultFile, "write_table", "search")
+    else:
+        wrote(R.ResultFile, "write", "window")
     study = curl_study(kind, max_cycles=n, intervals_per_cycle=10, substeps=2, solver={"compile": False})
     say("START")
     run_study(study, out, name="run", resume=True, progress=lambda line: say("P " + line))
@@ -165,7 +166,7 @@ def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tup
 def stored(kind: str, out: Path) -> list[tuple]:
     """The items a file holds: windows (index, first cycle, status, converged) or search rows
     (N, converged, status); every converged N's run is read too. Raises if anything is unreadable."""
-    from fatigue_pin.drivers.full import step_run_name
+    from fatigue_pin.drivers.search import step_run_name
     from fatigue_pin.io.results import list_runs, read_run, read_search
 
     if not out.exists():
@@ -189,7 +190,7 @@ def stored(kind: str, out: Path) -> list[tuple]:
 def same_result(kind: str, a: Path, b: Path, atol: float = 1e-9) -> str | None:
     """None if the runs stored in ``a`` and ``b`` are equal (tables, trajectories to ``atol``),
     else what differs."""
-    from fatigue_pin.drivers.full import step_run_name
+    from fatigue_pin.drivers.search import step_run_name
     from fatigue_pin.io.results import list_runs, read_run
 
     if stored(kind, a) != stored(kind, b):

@@ -37,7 +37,8 @@ def make_run(name: str, cycles: int, windows: int | None = None, seed: int = 0) 
     return RunResult(
         name=name,
         attrs={"horizon": "full" if windows is None else "sliding", "converged": True, "n_cycles": cycles,
-               "status": "Solve_Succeeded", "wall_time_s": 1.0},
+               "status": "Solve_Succeeded", "wall_time_s": 1.0,
+               "tau_limits": np.array([50.0, -50.0, 50.0, -50.0])},
         t=np.linspace(0, cycles, nodes),
         q=rng.normal(size=(nodes, 2)),
         qdot=rng.normal(size=(nodes, 2)),
@@ -52,6 +53,7 @@ def make_run(name: str, cycles: int, windows: int | None = None, seed: int = 0) 
         cycle_wall_time_s=np.ones(cycles),
         windows=table,
         urdf=bundled_urdf().read_text(),
+        fatigued=mf,
     )
 
 

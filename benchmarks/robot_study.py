@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fatigue_pin.io.results import ResultFile
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
 from fatigue_pin.io.study import Study
 
@@ -40,7 +41,7 @@ def measure(path: Path, windows: int, cache_dir: Path) -> dict:
     runner = SlidingHorizon(problem, settings, study.transcription(), study.solver(cache_dir), guess=h["guess"])
     build = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as tmp:
-        run = runner.run(Path(tmp) / "bench.h5")
+        run = runner.run(ResultFile(Path(tmp) / "bench.h5"))
     w = run.windows
     ok = w["converged"]
     return {

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from fatigue_pin.paper.curl import curl_study
+from fatigue_pin.io.results import ResultFile
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
 
 
@@ -47,7 +48,7 @@ def main() -> None:
     for r in range(args.runs):
         with tempfile.TemporaryDirectory() as tmp:
             t1 = time.perf_counter()
-            run = runner.run(Path(tmp) / "bench.h5", progress=print if r == 0 else (lambda _: None))
+            run = runner.run(ResultFile(Path(tmp) / "bench.h5"), progress=print if r == 0 else (lambda _: None))
             totals.append(time.perf_counter() - t1)
         w = run.windows
         med_it = float(np.median(w["iterations"][w["converged"]])) if w["converged"].any() else 0.0

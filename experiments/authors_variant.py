@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.drivers.full import solution_to_run, solve_full
+from fatigue_pin.drivers.full import solve_full
+from fatigue_pin.drivers.run import solution_to_run
 from fatigue_pin.paper.curl import PAPER_REPETITIONS, authors_variant_dict
 from fatigue_pin.io.results import write_run
 from fatigue_pin.io.study import Study, parse_changes

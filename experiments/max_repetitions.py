@@ -1,6 +1,6 @@
 """Full-horizon maximum repetitions for the three costs with S = 10 and S = 0 (paper table 2).
 
-Runs ``fatigue_pin.drivers.full.max_repetitions`` for every (cost, S), one after the other (each solve
+Runs ``fatigue_pin.drivers.search.max_repetitions`` for every (cost, S), one after the other (each solve
 uses every core), writes one HDF5 file per search into ``--out`` (the search table and the best
 run; written after every N, so an interrupted study resumes where it stopped) and prints every N
 tried and the summary beside the paper's. Usage::

@@ -49,7 +49,8 @@ def make_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10) -> Run
     mf = np.linspace(0, 0.3, nodes)[:, None] * np.ones((1, 4))
     return RunResult(
         name=name,
-        attrs={"horizon": "full", "cost": "torque", "S": 10.0, "converged": True, "n_cycles": cycles},
+        attrs={"horizon": "full", "cost": "torque", "S": 10.0, "converged": True, "n_cycles": cycles,
+               "tau_limits": np.array([50.0, -50.0, 50.0, -50.0])},
         t=np.linspace(0, cycles, nodes),
         q=rng.normal(size=(nodes, 2)),
         qdot=rng.normal(size=(nodes, 2)),
@@ -58,6 +59,7 @@ def make_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10) -> Run
         fatigue={"ma": rng.uniform(size=(nodes, 4)), "mr": rng.uniform(size=(nodes, 4)), "mf": mf},
         cycle_costs=rng.uniform(size=(cycles, 4)),
         torque_limits=torque_limits_at_cycle_ends(mf, np.array([50, -50, 50, -50]), n),
+        fatigued=mf,
         joint_names=("shoulder", "elbow"),
         actuator_names=("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus"),
         cost_terms=("posture", "torque_rate", "fatigue", "torque"),
@@ -101,5 +103,5 @@ def make_curl_run(name: str = "full/fatigue_torque", n_cycles: int = 2, n: int =
         name=name, attrs=attrs, t=t, q=q, qdot=qdot, tau_plus=tau_plus, tau_minus=tau_minus, fatigue={"ma": ma, "mr": mr, "mf": mf},
         cycle_costs=costs, torque_limits=(1 - mf[n::n]) * limits, joint_names=("shoulder", "elbow"),
         actuator_names=HALVES, cost_terms=TERMS, cycle_wall_time_s=np.full(n_cycles, 6.0), windows=windows,
-        urdf=urdf,
+        urdf=urdf, fatigued=mf,
     )

@@ -38,7 +38,8 @@ def _cmd_endurance(args: argparse.Namespace) -> int:
     from fatigue_pin.core.errors import ParameterError
     from fatigue_pin.core.progress import Reporter
     from fatigue_pin.fatigue.endurance import DEFAULT_LOADS
-    from fatigue_pin.fatigue.endurance_report import check_output_dir, format_comparison, format_table, run_endurance
+    from fatigue_pin.core.files import check_output_dir
+    from fatigue_pin.fatigue.endurance_report import format_comparison, format_table, run_endurance
 
     check_output_dir(args.out)
     if args.duty_cycle < 1.0 and args.cycle_s is None:
@@ -59,7 +60,7 @@ def _cmd_endurance(args: argparse.Namespace) -> int:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from fatigue_pin.fatigue.calibration import check_output_file, run_calibrate
 
-    check_output_file(args.out)
+    check_output_file(args.out, ".json")
     result, paths = run_calibrate(args.data, args.out, model=args.model, LD=args.ld, LR=args.lr,
                                   confidence=args.confidence, intermittent=args.intermittent)
     level = int(round(100 * result.confidence))

@@ -157,7 +157,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from fatigue_pin.viz.replay import export_html, serve
+    from fatigue_pin.viz.replay import export_html
+    from fatigue_pin.viz.server import serve
     from fatigue_pin.io.results import ResultFileError, read_run
 
     run = read_run(args.file, args.run)
@@ -178,11 +179,13 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from fatigue_pin.viz.plots import plot_file
     from fatigue_pin.io.results import check_output_dir
+    from fatigue_pin.paper.forward_file import is_forward_file, plot_forward_file
+    from fatigue_pin.viz.plots import plot_file
 
     check_output_dir(args.out)
-    for path in plot_file(args.file, args.out):
+    plot = plot_forward_file if is_forward_file(args.file) else plot_file
+    for path in plot(args.file, args.out):
         print(f"wrote {path}")
     return 0
 

@@ -25,3 +25,13 @@ class DimensionError(FatiguePinError, ValueError):
 
 class TaskError(FatiguePinError, ValueError):
     """A task that cannot be posed on the model (unknown joint, target outside the joint range, ...)."""
+
+
+class ResultFileError(FatiguePinError, ValueError):
+    """A result file or run that cannot be read or written (missing, damaged, foreign, newer
+    layout, no room, ...)."""
+
+
+class OutputLocationError(ResultFileError):
+    """An output path that cannot receive files (a file where a folder is expected, a folder that
+    cannot be created or written to, a full disk, a wrong file name)."""

@@ -1,6 +1,6 @@
 """Sliding-horizon (cyclic NMPC) solves: a window of K cycles advancing A cycles at a time.
 
-Paper section 3 / SPEC section 4. One :class:`~fatigue_pin.ocp.transcription.Ocp` of K cycles is built
+Paper section 3 (docs/ocp.md). One :class:`~fatigue_pin.ocp.transcription.Ocp` of K cycles is built
 (and compiled) once; every window re-solves it with new parameters:
 
 * its initial state is the previous window's state at node A * n (n intervals per cycle);
@@ -21,22 +21,20 @@ run (the guess of a window only depends on the previous window's stored solution
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-import json
-from typing import Any
-
-from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.drivers.full import OcpBuilder, run_attributes, to_run_result
-from fatigue_pin.ocp.problem import Problem
-from fatigue_pin.io.results import FAILED_WINDOW_SUFFIX, WINDOW_DTYPE, ResultFileError, RunResult, list_runs, read_run, write_run
-from fatigue_pin.ocp.solver import SolverOptions
-from fatigue_pin.ocp.transcription import Transcription
-
+from fatigue_pin.core.errors import ParameterError, ResultFileError
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, run_attributes, to_run_result
+from fatigue_pin.ocp.guesses import shifted_window_guess
+from fatigue_pin.ocp.problem import Problem
+from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.transcription import OcpSolution, Transcription
 
 
 @dataclass(frozen=True)
@@ -105,11 +103,6 @@ def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
     return settings.advance * (converged_windows - 1) + settings.window
 
 
-def failed_window_name(name: str) -> str:
-    """Run name of the failed window of the sliding run ``name`` (its last IPOPT iterate)."""
-    return f"{name}{FAILED_WINDOW_SUFFIX}"
-
-
 class SlidingHorizon:
     """A sliding-horizon run of a problem.
 
@@ -156,18 +149,10 @@ class SlidingHorizon:
         return self.ocp.task.intervals_per_cycle
 
     def window_guess(self, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Guess of a window from the previous window's states (K n + 1, nx) and controls (K n, nu):
-        its cycle A copied into every cycle, fatigue states integrated from ``x_init``."""
-        n, A, K = self._n, self.sliding.advance, self.sliding.window
-        cyc = min(A, K - 1)
-        u_cycle = u_prev[cyc * n : (cyc + 1) * n]
-        x_cycle = x_prev[cyc * n : (cyc + 1) * n]
-        u = np.tile(u_cycle, (K, 1))
-        xs = np.vstack([np.tile(x_cycle, (K, 1)), x_prev[(cyc + 1) * n][None, :]])
-        if self.sliding.guess_fatigue == "copy":
-            return xs, u
-        L = self.ocp.layout
-        return self.ocp.rollout_fatigue(x_init, xs[:, L.q], xs[:, L.v], u), u
+        """Guess of a window from the previous window's states (K n + 1, nx) and controls (K n, nu)
+        (:func:`fatigue_pin.ocp.guesses.shifted_window_guess`)."""
+        return shifted_window_guess(self.ocp, x_init, x_prev, u_prev, self.sliding.advance,
+                                    copy_fatigue=self.sliding.guess_fatigue == "copy")
 
     def _iteration_limit(self, state: _State) -> int | None:
         """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
@@ -212,17 +197,17 @@ class SlidingHorizon:
         t = np.arange(state.x.shape[0]) * ocp.task.dt
         return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table, study=self.study)
 
-    def _restore(self, path: Path, name: str) -> _State | None:
-        if not path.exists() or name not in list_runs(path):
+    def _restore(self, store: RunStore, name: str) -> _State | None:
+        if name not in store.runs():
             return None
-        run = read_run(path, name)
+        run = store.read(name)
         if run.windows is None:
-            raise ResultFileError(f"run {name!r} in {str(path)!r} has no window table; it is not a sliding-horizon run")
+            raise ResultFileError(f"run {name!r} in {store!r} has no window table; it is not a sliding-horizon run")
         if run.attrs.get("fingerprint") != self.fingerprint():
             stored = json.loads(run.attrs.get("fingerprint") or "{}")
             mine = json.loads(self.fingerprint())
             key = next((k for k in mine if stored.get(k) != mine[k]), "settings")
-            raise ResultFileError(f"cannot resume run {name!r} in {str(path)!r}: its {key} differ from this run's "
+            raise ResultFileError(f"cannot resume run {name!r} in {store!r}: its {key} differ from this run's "
                                   f"({stored.get(key)!r} stored, {mine.get(key)!r} now)")
         x = self.ocp.layout.assemble(run.q, run.qdot, run.fatigue)
         u = np.hstack([run.tau_plus, run.tau_minus])
@@ -231,9 +216,41 @@ class SlidingHorizon:
 
     # -- the run ---------------------------------------------------------------------------------
 
+    def _next_window(self, state: _State | None) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray], int]:
+        """Initial state, guess and first cycle of the next window."""
+        ocp, n, A, K = self.ocp, self._n, self.sliding.advance, self.sliding.window
+        if state is None:
+            x_init = ocp.initial_state()
+            return x_init, ocp.initial_guess(x_init), 0
+        x_prev, u_prev = state.x[-(K * n + 1):], state.u[-(K * n):]
+        x_init = x_prev[A * n].copy()
+        return x_init, self.window_guess(x_init, x_prev, u_prev), state.n_cycles - K + A
+
+    def _advance(self, state: _State | None, sol: OcpSolution, row: tuple) -> _State:
+        """The run after a window: a converged window keeps its first A cycles (replacing the
+        previous window's unkept tail); a failed one ends the run."""
+        n, A, K, L = self._n, self.sliding.advance, self.sliding.window, self.ocp.layout
+        wall = np.zeros(K)  # a window's solve time goes to the A cycles it keeps
+        wall[:A] = sol.wall_time_s / A
+        if state is None:
+            if sol.success:
+                return _State(sol.x, sol.u, sol.cycle_costs, wall, [row], False)
+            return _State(np.zeros((0, L.nx)), np.zeros((0, L.nu)), np.zeros((0, sol.cycle_costs.shape[1])), np.zeros(0), [row], True)
+        state.windows.append(row)
+        if not sol.success:
+            state.done = True
+            return state
+        keep_nodes = state.x.shape[0] - (K - A) * n
+        keep_int, keep_cyc = state.u.shape[0] - (K - A) * n, state.n_cycles - (K - A)
+        state.x = np.vstack([state.x[: keep_nodes - 1], sol.x])
+        state.u = np.vstack([state.u[:keep_int], sol.u])
+        state.costs = np.vstack([state.costs[:keep_cyc], sol.cycle_costs])
+        state.cycle_wall = np.concatenate([state.cycle_wall[:keep_cyc], wall])
+        return state
+
     def run(
         self,
-        out: str | Path | None = None,
+        store: RunStore | None = None,
         name: str | None = None,
         resume: bool = False,
         progress: Progress = None,
@@ -242,81 +259,48 @@ class SlidingHorizon:
         """Solve windows until one fails or ``max_cycles`` cycles are kept.
 
         Args:
-            out: HDF5 file that receives the run after every window (``None``: memory only).
-            name: run group name (default ``sliding/run``).
-            resume: continue the run stored under ``name`` in ``out``.
+            store: where the run is written after every window (e.g.
+                :class:`fatigue_pin.io.results.ResultFile`; ``None``: memory only).
+            name: run name (default ``sliding/run``).
+            resume: continue the run kept under ``name`` in ``store``.
             progress: a :class:`~fatigue_pin.core.progress.Reporter` (one line per window and a bar over
                 the cycles kept), or a callable receiving the lines; default quiet.
             stop_after: solve at most this many windows in this call (for tests and batching).
 
         Returns:
-            The stitched :class:`RunResult` (also in ``out``).
+            The stitched :class:`RunResult` (also in ``store``).
         """
         name = name or "sliding/run"
-        path = Path(out) if out is not None else None
-        n, A, K = self._n, self.sliding.advance, self.sliding.window
-        ocp = self.ocp
-        state = self._restore(path, name) if (resume and path is not None) else None
+        ocp, n, A, K = self.ocp, self._n, self.sliding.advance, self.sliding.window
+        state = self._restore(store, name) if (resume and store is not None) else None
         rep = as_reporter(progress)
         if resume and state is not None:
             rep.line(f"resuming {name!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
-        build_time = ocp.build_time_s
-        solved = 0
-        fatigued_rows = [ocp.layout.nq + ocp.layout.nv + r for r in ocp.actuators.fatigued_rows()]
+        fatigued_rows = ocp.layout.fatigued_rows()
         bar = rep.bar(self.sliding.max_cycles, "cycles kept", "cycle")
-        if state is not None:
-            bar.update(state.n_cycles)
-        while state is None or not state.done:
-            if stop_after is not None and solved >= stop_after:
-                break
-            if state is None:
-                x_init = ocp.initial_state()
-                guess = ocp.initial_guess(x_init)
-                first_cycle = 0
-            else:
-                first_cycle = state.n_cycles - K + A
-                x_prev = state.x[-(K * n + 1):]
-                u_prev = state.u[-(K * n):]
-                x_init = x_prev[A * n].copy()
-                guess = self.window_guess(x_init, x_prev, u_prev)
+        bar.update(state.n_cycles if state is not None else 0)
+        solved = 0
+        while (state is None or not state.done) and (stop_after is None or solved < stop_after):
+            x_init, guess, first_cycle = self._next_window(state)
             limit = self._iteration_limit(state) if state is not None else None
             sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit)
             solved += 1
             index = len(state.windows) if state is not None else 0
             row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
-            wall = np.zeros(K)  # a window's solve time goes to the A cycles it keeps
-            wall[:A] = sol.wall_time_s / A
             mf_end = sol.x[A * n, fatigued_rows]
             rep.line(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
                      f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
                      f"{'' if limit is None else f' (limit {limit} it)'}  max mf {mf_end.max():.3f}")
             before = state.n_cycles if state is not None else 0
-            if state is None:
-                if not sol.success:
-                    state = _State(np.zeros((0, ocp.layout.nx)), np.zeros((0, ocp.layout.nu)), np.zeros((0, sol.cycle_costs.shape[1])),
-                                   np.zeros(0), [row], True)
-                else:
-                    state = _State(sol.x, sol.u, sol.cycle_costs, wall, [row], False)
-            elif not sol.success:
-                state.windows.append(row)
-                state.done = True
-            else:
-                keep_nodes = state.x.shape[0] - (K - A) * n  # drop the previous window's unkept tail
-                keep_int = state.u.shape[0] - (K - A) * n
-                keep_cyc = state.n_cycles - (K - A)
-                state.x = np.vstack([state.x[: keep_nodes - 1], sol.x])
-                state.u = np.vstack([state.u[:keep_int], sol.u])
-                state.costs = np.vstack([state.costs[:keep_cyc], sol.cycle_costs])
-                state.cycle_wall = np.concatenate([state.cycle_wall[:keep_cyc], wall])
-                state.windows.append(row)
+            state = self._advance(state, sol, row)
             if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
                 state.done = True
-            if path is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
-                write_run(path, self._failed_window(sol, first_cycle, failed_window_name(name)))
-            if path is not None:
-                write_run(path, self._run_result(state, name, build_time))
+            if store is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
+                store.write(self._failed_window(sol, first_cycle, failed_window_name(name)))
+            if store is not None:
+                store.write(self._run_result(state, name, ocp.build_time_s))
             bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
         bar.close()
         if state is None:
             raise RuntimeError("no window was solved")
-        return self._run_result(state, name, build_time)
+        return self._run_result(state, name, ocp.build_time_s)

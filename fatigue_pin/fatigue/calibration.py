@@ -25,7 +25,6 @@ import csv
 import datetime
 import json
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,8 +33,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
-from fatigue_pin.fatigue.endurance import OutputLocationError, endurance_time, intermittent_et_closed_form, sustained_et_closed_form
+from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.files import atomic_write_bytes, check_output_file
 from fatigue_pin.fatigue.models import XiaFatigue
 
 __all__ = [
@@ -317,11 +317,7 @@ class CalibrationResult:
         return d
 
     def write_json(self, path: str | Path) -> Path:
-        p = Path(path)
-        tmp = p.with_name(p.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=2) + "\n")
-        os.replace(tmp, p)
-        return p
+        return atomic_write_bytes(Path(path), (json.dumps(self.to_dict(), indent=2) + "\n").encode())
 
 
 def calibrate(
@@ -431,26 +427,10 @@ def plot_calibration(result: CalibrationResult, path: str | Path) -> Path:
     return out
 
 
-def check_output_file(path: str | Path, suffix: str = ".json") -> Path:
-    """Check that ``path`` can be written: its folder exists and is writable, it is not a folder,
-    and it ends with ``suffix`` (raises :class:`~fatigue_pin.fatigue.endurance.OutputLocationError`)."""
-    p = Path(path)
-    if p.suffix.lower() != suffix:
-        raise OutputLocationError(f"--out {str(p)!r}: expected a {suffix} file name")
-    if p.is_dir():
-        raise OutputLocationError(f"--out {str(p)!r} is a folder: expected a {suffix} file name")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise OutputLocationError(f"--out {str(p)!r}: folder {str(parent)!r} does not exist: expected an existing folder")
-    if not os.access(parent, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise OutputLocationError(f"--out {str(p)!r} is not writable: expected a writable location")
-    return p
-
-
 def run_calibrate(data_csv: str | Path, out_json: str | Path, model: str = "3cc", LD: float = 10.0, LR: float = 10.0,
                   confidence: float = 0.95, intermittent: str = "closed-form") -> tuple[CalibrationResult, dict[str, Path]]:
     """Read ``data_csv``, fit, write ``out_json`` and ``<out_json stem>.png`` beside it (output checked first)."""
-    out = check_output_file(out_json)
+    out = check_output_file(out_json, ".json")
     data = read_endurance_csv(data_csv)
     result = calibrate(data, model=model, LD=LD, LR=LR, confidence=confidence, intermittent=intermittent)
     paths = {"json": result.write_json(out), "png": plot_calibration(result, out.with_suffix(".png"))}

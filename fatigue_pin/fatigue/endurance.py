@@ -41,7 +41,7 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from fatigue_pin.core.errors import FatiguePinError, ParameterError
+from fatigue_pin.core.errors import FatiguePinError, OutputLocationError, ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.fatigue.models import FatigueModel, XiaFatigue
 
@@ -84,10 +84,6 @@ PROGRESS_EVERY = 1000
 
 #: Target loads of the tables: 0.1, 0.2, ..., 0.9.
 DEFAULT_LOADS: tuple[float, ...] = tuple(round(0.1 * k, 1) for k in range(1, 10))
-
-
-class OutputLocationError(FatiguePinError, ValueError):
-    """An output path that cannot be written (a file where a folder is expected, no permission, ...)."""
 
 
 # -- closed forms ------------------------------------------------------------------------------------

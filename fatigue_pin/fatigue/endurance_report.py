@@ -5,19 +5,18 @@ from __future__ import annotations
 
 import datetime
 import math
-import os
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from fatigue_pin.core.files import atomic_write, check_output_dir
 from fatigue_pin.core.progress import Progress
 from fatigue_pin.fatigue.endurance import (
     DEFAULT_LOADS,
     FREY_LAW_AVIN_SOURCE,
     MAX_CYCLES,
     EnduranceTable,
-    OutputLocationError,
     compare_frey_law_avin,
     endurance_table,
     intermittent_et_closed_form,
@@ -26,7 +25,7 @@ from fatigue_pin.fatigue.endurance import (
 )
 from fatigue_pin.fatigue.models import XiaFatigue
 
-__all__ = ["format_table", "format_comparison", "check_output_dir", "write_h5", "plot_endurance", "run_endurance"]
+__all__ = ["format_table", "format_comparison", "write_h5", "plot_endurance", "run_endurance"]
 
 
 def _fmt(x: float) -> str:
@@ -84,22 +83,8 @@ def format_comparison(tables: Sequence[EnduranceTable]) -> str:
 # -- files --------------------------------------------------------------------------------------------
 
 
-def check_output_dir(out_dir: Path | str) -> Path:
-    """Create ``out_dir`` if needed and check it is a writable folder (raises OutputLocationError)."""
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise OutputLocationError(f"--out {str(out)!r} is an existing file: expected a folder (existing or new)")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputLocationError(f"--out {str(out)!r} cannot be created ({exc.strerror}): expected a writable folder") from None
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise OutputLocationError(f"--out {str(out)!r} is not writable: expected a writable folder")
-    return out
-
-
 def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Sequence[EnduranceTable] = ()) -> Path:
-    """Write endurance tables to HDF5 (``path.tmp`` then ``os.replace``).
+    """Write endurance tables to HDF5 (atomic: :func:`fatigue_pin.core.files.atomic_write`).
 
     Layout: one group per table under ``/endurance/<i>`` and ``/frey_law_avin/<joint>`` with
     datasets ``TL``, ``et_sim_s``, ``et_closed_form_s``, ``et_power_model_s`` (if any) and attributes
@@ -112,10 +97,9 @@ def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Seq
     from fatigue_pin.core.version import __version__ as version
 
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
     definition = ("first time at which ma + mr < TL while the task asks for TL, from a rested actuator, rests "
                   "included; inf if none before t_max")
-    try:
+    def fill(tmp: Path) -> None:
         with h5py.File(tmp, "w") as h5:
             h5.attrs["description"] = "fatigue_pin endurance times of isometric tasks"
             h5.attrs["fatigue_pin_version"] = version
@@ -137,10 +121,7 @@ def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Seq
                     if tab.et_power.size:
                         g.attrs["joint"] = tab.joint
                         g.create_dataset("et_power_model_s", data=tab.et_power)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic_write(path, fill)
     return path
 
 

@@ -69,7 +69,7 @@ def _build() -> dict[str, tuple[str, dict[str, float], str]]:
         "xia",
         {"LD": 10.0, "LR": 10.0, "F": 0.456, "R": 0.0094, "S": 10.0, "r": 1.0},
         "Puchaud, Michaud & Begon (2023), OCPs, values of the authors' code that produced the published "
-        "results (s2mLab/dumbbell_lifting; SPEC section 4): R = 0.0094",
+        "results (s2mLab/dumbbell_lifting; docs/authors-code.md): R = 0.0094",
     )
     out["puchaud-2023/paper"] = (
         "xia",

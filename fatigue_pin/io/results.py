@@ -19,7 +19,11 @@ Layout (``docs/results.md``)::
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
-    /search                          max-cycles searches: n_cycles, converged, iterations, wall_time_s
+    /search/<table>                  max-cycles searches (fatigue_pin.drivers.search), one row per solve:
+                                     n_cycles, converged, status, iterations, wall_time_s, kind
+                                     (how it ended), guess (what started it), constraint_violation;
+                                     attributes: run (the best run's name), max_cycles, the labels
+    /searched/<table>/N<n>           the converged solution of every N the search tried
 
 The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
 run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
@@ -36,142 +40,33 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import json
 import os
-import shutil
-import tempfile
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import h5py
 import numpy as np
 
-from fatigue_pin.core.errors import FatiguePinError
-
-#: Attributes every run group carries.
-RUN_ATTRIBUTES = (
-    "horizon", "n_cycles", "converged", "status", "wall_time_s", "build_time_s", "iterations", "solver", "model",
-    "weights", "fatigue_params",
+from fatigue_pin.core.errors import ResultFileError
+from fatigue_pin.core.files import check_folder, check_output_dir, check_space, clone, fsync, locked
+from fatigue_pin.drivers.run import (
+    FAILED_WINDOW_SUFFIX,
+    RUN_ATTRIBUTES,
+    SEARCH_DTYPE,
+    WINDOW_DTYPE,
+    RunResult,
+    torque_limits_at_cycle_ends,
 )
+
+__all__ = [
+    "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
+    "check_output", "check_output_dir", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
+    "write_run", "write_search",
+]
+
 #: Fatigue states of files written before the layout named them (Xia's model).
 LEGACY_FATIGUE_STATES = ("ma", "mr", "mf")
-
-WINDOW_DTYPE = np.dtype([
-    ("index", "i4"), ("first_cycle", "i4"), ("status", "S40"), ("converged", "?"),
-    ("iterations", "i4"), ("wall_time_s", "f8"), ("objective", "f8"),
-])
-
-SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40"), ("iterations", "i4"), ("wall_time_s", "f8"),
-                         ("kind", "S24"), ("guess", "S24"), ("constraint_violation", "f8")])
-
-
-class ResultFileError(FatiguePinError, ValueError):
-    """A result file or run that cannot be read."""
-
-
-@dataclass
-class RunResult:
-    """One OCP run (full horizon, or sliding horizon stitched from its windows).
-
-    Shapes: nodes = n_cycles * intervals_per_cycle + 1, intervals = nodes - 1, halves = 2 nv.
-
-    Attributes:
-        name: group name in the file.
-        attrs: run attributes (see :data:`RUN_ATTRIBUTES`; more may be present).
-        t: node times (s), (nodes,).
-        q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
-        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv).
-        fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
-            the columns of halves whose model has no such state.
-        cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
-        torque_limits: available torque (1 - mf) * tau_limit of every half at the end of each
-            cycle (N m, signed like the half), (cycles, halves).
-        joint_names, actuator_names, cost_terms: labels of the columns.
-        cycle_wall_time_s: solve time attributed to each cycle (s), (cycles,).
-        windows: sliding-horizon window table (structured, :data:`WINDOW_DTYPE`), or None.
-        urdf: the model's URDF text (so the file reproduces itself), or "".
-        study: the TOML text of the study that produced the run, or "" (built in Python).
-        fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
-    """
-
-    name: str
-    attrs: dict[str, Any]
-    t: np.ndarray
-    q: np.ndarray
-    qdot: np.ndarray
-    tau_plus: np.ndarray
-    tau_minus: np.ndarray
-    fatigue: dict[str, np.ndarray]
-    cycle_costs: np.ndarray
-    torque_limits: np.ndarray
-    joint_names: tuple[str, ...]
-    actuator_names: tuple[str, ...]
-    cost_terms: tuple[str, ...]
-    cycle_wall_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    windows: np.ndarray | None = None
-    urdf: str = ""
-    study: str = ""
-    fatigued: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        if self.fatigued is None:
-            self.fatigued = self.fatigue.get("mf")
-
-    @property
-    def fatigue_states(self) -> tuple[str, ...]:
-        return tuple(self.fatigue)
-
-    def state(self, name: str) -> np.ndarray:
-        """Fatigue state ``name`` of every half, (nodes, halves)."""
-        if name not in self.fatigue:
-            raise ResultFileError(f"run {self.name!r} has no fatigue state {name!r}; its states are {list(self.fatigue)}")
-        return self.fatigue[name]
-
-    @property
-    def ma(self) -> np.ndarray:
-        return self.state("ma")
-
-    @property
-    def mr(self) -> np.ndarray:
-        return self.state("mr")
-
-    @property
-    def mf(self) -> np.ndarray:
-        return self.state("mf")
-
-    @property
-    def n_cycles(self) -> int:
-        return int(self.cycle_costs.shape[0])
-
-    @property
-    def converged(self) -> bool:
-        return bool(self.attrs.get("converged", False))
-
-    @property
-    def intervals_per_cycle(self) -> int:
-        return (self.t.size - 1) // max(self.n_cycles, 1)
-
-    def invariant_error(self) -> np.ndarray:
-        """|1 - (sum of the fatigue states)| of every half at every node, (nodes, halves) (for
-        Xia's model |1 - (ma + mr + mf)|; states a half lacks count as 0)."""
-        total = sum(np.nan_to_num(v) for v in self.fatigue.values())
-        return np.abs(1.0 - total)
-
-    def cycle_slice(self, cycle: int) -> slice:
-        """Node slice of cycle ``cycle`` (0-based), both ends included."""
-        n = self.intervals_per_cycle
-        if not 0 <= cycle < self.n_cycles:
-            raise ResultFileError(f"cycle {cycle} is out of range: run {self.name!r} has cycles 0..{self.n_cycles - 1}")
-        return slice(cycle * n, (cycle + 1) * n + 1)
-
-
-def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, intervals_per_cycle: int) -> np.ndarray:
-    """(1 - mf) * limit at nodes n, 2n, ..., shape (cycles, halves); ``signed_limits`` (halves,)."""
-    ends = np.arange(intervals_per_cycle, mf.shape[0], intervals_per_cycle)
-    return (1.0 - mf[ends]) * np.asarray(signed_limits)[None, :]
-
 
 def _as_attr(value: Any) -> Any:
     if value is None:
@@ -235,7 +130,7 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         windows=group["windows"][()] if "windows" in group else None,
         urdf=str(group.attrs.get("urdf", "")),
         study=_text(group.attrs.get("study", "")),
-        fatigued=group["fatigued"][()] if "fatigued" in group else None,
+        fatigued=group["fatigued"][()] if "fatigued" in group else group["mf"][()],  # before "fatigued": Xia's mf
     )
 
 
@@ -278,35 +173,6 @@ def _io_error(path: Path, exc: OSError) -> ResultFileError:
     return ResultFileError(f"cannot write {str(path)!r}: {reason}; the previous file is unchanged")
 
 
-@contextlib.contextmanager
-def _locked(path: Path) -> Iterator[None]:
-    """Hold an exclusive lock on ``path`` (``flock`` of the sidecar ``.<name>.lock``) so that
-    concurrent writers take turns; each re-reads the file under the lock."""
-    lock = path.with_name(f".{path.name}.lock")
-    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
-        except OSError as exc:  # a file system without locks (some network mounts): write unlocked
-            if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
-                raise
-        yield
-    finally:
-        os.close(fd)  # releases the lock
-
-
-def _clone(src: Path, dst: Path) -> None:
-    """Copy the bytes of ``src`` to ``dst``: a reflink where the file system has them, else a
-    kernel-side copy."""
-    with open(src, "rb") as fin, open(dst, "wb") as fout:
-        try:
-            fcntl.ioctl(fout.fileno(), 0x40049409, fin.fileno())  # FICLONE (btrfs, xfs): instant
-            return
-        except OSError:
-            pass
-    shutil.copyfile(src, dst)  # sendfile / copy_file_range on Linux
-
-
 def _compact(src: Path, dst: Path) -> None:
     """Rewrite ``src`` object by object into a new file at ``dst`` created with :data:`_CREATE`
     (files of layout 1, or written without persistent free-space tracking; once per file),
@@ -340,21 +206,10 @@ def _prepare(path: Path, tmp: Path) -> int | None:
         persistent = bool(old.id.get_create_plist().get_file_space_strategy()[1])
         compacted = int(old.attrs.get("compacted_bytes", 0))
     if layout == LAYOUT and persistent and path.stat().st_size <= 2 * compacted + _COMPACT_SLACK:
-        _clone(path, tmp)
+        clone(path, tmp)
         return None
     _compact(path, tmp)
     return tmp.stat().st_size
-
-
-def _fsync(path: Path, directory: bool = False) -> None:
-    fd = os.open(path, os.O_RDONLY if directory else os.O_RDWR)
-    try:
-        os.fsync(fd)
-    except OSError:
-        if not directory:
-            raise
-    finally:
-        os.close(fd)
 
 
 def _check_room(path: Path, new_bytes: int) -> None:
@@ -392,7 +247,7 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
     tmp = path.with_name(path.name + ".tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with _locked(path):
+        with locked(path.with_name(f".{path.name}.lock")):
             _check_room(path, new_bytes)
             try:
                 compacted = _prepare(path, tmp)
@@ -404,9 +259,9 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
                             del h5[key]
                     fill(h5)
                     h5.attrs["format"] = FORMAT
-                _fsync(tmp)
+                fsync(tmp)
                 os.replace(tmp, path)
-                _fsync(path.parent, directory=True)
+                fsync(path.parent, directory=True)
             finally:
                 with contextlib.suppress(OSError):
                     tmp.unlink()
@@ -475,56 +330,9 @@ def check_output(path: str | Path) -> Path:
             raise ResultFileError(f"output {str(path)!r} is not writable")
         size = path.stat().st_size
     folder = path.parent
-    _check_folder(folder, f"output folder {str(folder)!r}")
-    _check_space(folder, size + (64 << 10), f"adding a run to {str(path)!r}")
+    check_folder(folder, f"output folder {str(folder)!r}")
+    check_space(folder, size + (64 << 10), f"adding a run to {str(path)!r}")
     return path
-
-
-def check_output_dir(path: str | Path) -> Path:
-    """Check, before any work, that the folder ``path`` can receive output files: it is a folder
-    (created if missing) that can be written to, on a disk that is not full.
-
-    Raises:
-        ResultFileError: naming the path and what is wrong.
-    """
-    path = Path(path)
-    if path.exists() and not path.is_dir():
-        raise ResultFileError(f"output {str(path)!r} is a file; expected a folder (created if missing)")
-    _check_folder(path, f"output folder {str(path)!r}")
-    _check_space(path, 1 << 20, f"writing to {str(path)!r}")
-    return path
-
-
-def _check_folder(folder: Path, label: str) -> None:
-    """Create ``folder`` if needed and write a small probe file in it."""
-    existing = folder
-    while not existing.exists():
-        existing = existing.parent
-    if not existing.is_dir():
-        raise ResultFileError(f"{label} cannot be created: {str(existing)!r} is not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ResultFileError(f"{label} is not writable; expected a folder you can write to")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_") as probe:
-            probe.write(b"\0" * 4096)
-            probe.flush()
-            os.fsync(probe.fileno())
-    except OSError as exc:
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            raise ResultFileError(f"{label} is on a full disk (no space left on device)") from None
-        raise ResultFileError(f"{label} is not writable: a file cannot be created in it ({exc.strerror or exc})") from None
-
-
-def _check_space(folder: Path, need: int, what: str) -> None:
-    try:
-        st = os.statvfs(folder)
-    except OSError:
-        return
-    free = st.f_bavail * st.f_frsize
-    if free < need:
-        raise ResultFileError(f"the disk of {str(folder)!r} is full: {free // 1024} KiB free; "
-                              f"{what} needs at least {-(-need // 1024)} KiB")
 
 
 def _open(path: str | Path) -> h5py.File:
@@ -557,11 +365,6 @@ def _run_names(h5: h5py.File) -> list[str]:
     names: list[str] = []
     h5.visititems(lambda key, obj: names.append(key) if isinstance(obj, h5py.Group) and "t" in obj and "q" in obj else None)
     return sorted(names)
-
-
-#: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
-#: ``sliding/torque_S0_failed_window``.
-FAILED_WINDOW_SUFFIX = "_failed_window"
 
 
 def _main_runs(names: list[str]) -> list[str]:
@@ -627,3 +430,29 @@ def config_json(obj: Any) -> str:
         return repr(o)
 
     return json.dumps(obj, default=default, sort_keys=True)
+
+
+class ResultFile:
+    """An HDF5 result file as the :class:`~fatigue_pin.drivers.run.RunStore` of a driver: every
+    write is atomic (see :func:`write_run`)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+
+    def runs(self) -> list[str]:
+        return list_runs(self.path, failed_windows=True) if self.path.exists() else []
+
+    def read(self, name: str) -> RunResult:
+        return read_run(self.path, name)
+
+    def write(self, run: RunResult) -> None:
+        write_run(self.path, run)
+
+    def tables(self) -> dict[str, np.ndarray]:
+        return read_search(self.path) if self.path.exists() else {}
+
+    def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
+        write_search(self.path, name, rows, attrs)
+
+    def __repr__(self) -> str:
+        return f"ResultFile({str(self.path)!r})"

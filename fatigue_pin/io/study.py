@@ -676,13 +676,15 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
 
     ``progress`` is a :class:`~fatigue_pin.core.progress.Reporter` or a line callback (default quiet).
     Returns the driver's result: a :class:`~fatigue_pin.io.results.RunResult` (full, sliding) or a
-    :class:`~fatigue_pin.drivers.full.SearchResult` (max-cycles).
+    :class:`~fatigue_pin.drivers.search.SearchResult` (max-cycles).
     """
     from fatigue_pin.core.progress import as_reporter
 
-    from fatigue_pin.drivers.full import max_repetitions, solution_to_run, solve_full
-    from fatigue_pin.io.results import write_run
+    from fatigue_pin.drivers.full import solve_full
+    from fatigue_pin.drivers.run import solution_to_run
+    from fatigue_pin.drivers.search import max_repetitions
     from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
+    from fatigue_pin.io.results import ResultFile
 
     say = as_reporter(progress)
     if out is not None:  # before any work: a bad output path fails now, not after the solve
@@ -698,14 +700,15 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
         ocp, sol = solve_full(problem, h["cycles"], tr, sol_opts, guess=h["guess"], progress=say, end_tolerance=end)
         run = solution_to_run(ocp, sol, name, study=text, labels=study.labels)
         if out is not None:
-            write_run(out, run)
+            ResultFile(out).write(run)
         return run
     if h["kind"] == "sliding":
         sliding = SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=h["max_cycles"],
                                   end_tolerance=h["end_tolerance"], failure_iterations=h["failure_iterations"],
                                   min_iterations=h["min_iterations"], warmup=h["warmup"], guess_fatigue=h["guess_fatigue"])
         runner = SlidingHorizon(problem, sliding, tr, sol_opts, guess=h["guess"], study=text, labels=study.labels, progress=say)
-        return runner.run(out, name=name, resume=resume, progress=say)
-    return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say, out=out,
+        return runner.run(ResultFile(out) if out is not None else None, name=name, resume=resume, progress=say)
+    return max_repetitions(problem, tr, sol_opts, n_max=h["max_cycles"], guess=h["guess"], progress=say,
+                           store=ResultFile(out) if out is not None else None,
                            name=name, study=text, labels=study.labels, resume=resume,
                            end_tolerance=end)

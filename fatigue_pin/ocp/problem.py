@@ -27,20 +27,33 @@ from fatigue_pin.ocp.task import Task
 class StateLayout:
     """Where each quantity sits in the state x and the control u.
 
+    The fatigue states follow q and qdot, half after half; where each half's states start and
+    which row holds a named state are the actuators' to say
+    (:meth:`SignedTorqueActuators.state_rows`, :meth:`~SignedTorqueActuators.fatigued_rows`);
+    this layout only adds the offset nq + nv.
+
     Attributes:
         nq, nv: configuration and velocity sizes.
-        half_names: actuator halves in order (``shoulder_plus``, ...).
-        half_states: the state names of each half's fatigue model.
+        actuators: the actuator halves with their fatigue models.
     """
 
     nq: int
     nv: int
-    half_names: tuple[str, ...]
-    half_states: tuple[tuple[str, ...], ...]
+    actuators: SignedTorqueActuators
 
     @classmethod
     def of(cls, model: RobotModel, actuators: SignedTorqueActuators) -> StateLayout:
-        return cls(model.nq, model.nv, actuators.half_names, tuple(h.params.state_names for h in actuators.halves))
+        return cls(model.nq, model.nv, actuators)
+
+    @property
+    def half_names(self) -> tuple[str, ...]:
+        """Actuator halves in order (``shoulder_plus``, ...)."""
+        return tuple(self.actuators.half_names)
+
+    @property
+    def half_states(self) -> tuple[tuple[str, ...], ...]:
+        """The state names of each half's fatigue model."""
+        return tuple(tuple(h.params.state_names) for h in self.actuators.halves)
 
     @property
     def n_halves(self) -> int:
@@ -49,7 +62,7 @@ class StateLayout:
     @property
     def n_fatigue(self) -> int:
         """Number of fatigue states of all halves."""
-        return sum(len(s) for s in self.half_states)
+        return self.actuators.n_states
 
     @property
     def nx(self) -> int:
@@ -74,17 +87,21 @@ class StateLayout:
     @property
     def state_kinds(self) -> tuple[str, ...]:
         """Every fatigue state name, in first-seen order (``ma, mr, mf`` for Xia's model)."""
-        return tuple(dict.fromkeys(s for states in self.half_states for s in states))
+        return self.actuators.fatigue_state_kinds
 
     def rows(self, state: str) -> list[int | None]:
         """Row in x of fatigue state ``state`` of every half (``None`` where a half's model has no
         such state), length n_halves."""
-        out: list[int | None] = []
-        k = self.nq + self.nv
-        for states in self.half_states:
-            out.append(k + states.index(state) if state in states else None)
-            k += len(states)
-        return out
+        m0 = self.nq + self.nv
+        return [None if r is None else m0 + r for r in self.actuators.state_rows(state)]
+
+    def fatigued_rows(self) -> list[int]:
+        """Row in x of every half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
+        return [self.nq + self.nv + r for r in self.actuators.fatigued_rows()]
+
+    def fatigued(self, x: np.ndarray) -> np.ndarray:
+        """The fatigued fraction of every half from states x (nodes, nx): (nodes, n_halves)."""
+        return np.asarray(x)[..., self.fatigued_rows()]
 
     def fatigue_index(self, state: str) -> list[int]:
         """Rows in x of fatigue state ``state`` of every half; every half must have it."""
@@ -164,10 +181,10 @@ class Problem:
             self.task.check_start(m, x[L.q], "x_init's q")
         except TaskError as exc:
             raise ParameterError(str(exc)) from None
-        k = L.nq + L.nv
-        for half, states in zip(self.actuators.halves, L.half_states):
-            half.params.check_state(x[k : k + len(states)], f"x_init of actuator half {half.name!r}")
-            k += len(states)
+        k0 = L.nq + L.nv
+        for half, off in zip(self.actuators.halves, self.actuators.state_offsets()):
+            start = k0 + off
+            half.params.check_state(x[start : start + half.params.n_states()], f"x_init of actuator half {half.name!r}")
 
     @classmethod
     def build(cls, model: RobotModel, fatigue: ParamsSpec, task: Task, costs: Sequence[CostTerm],

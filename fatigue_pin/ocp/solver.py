@@ -31,6 +31,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.ocp.compiled import cached_build, compile_shared, verify_entry
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
@@ -110,8 +111,8 @@ class SolverOptions:
             the derivatives IPOPT needs of them once per model (:mod:`fatigue_pin.ocp.compiled`,
             cached under a key without the horizon) and lets CasADi's virtual machine assemble
             any horizon around them: a new horizon builds in seconds. ``nlp`` generates and
-            compiles the whole NLP of each horizon (about a minute each on arm26) and is faster
-            per iteration on long horizons (docs/ocp.md, "Compiled code").
+            compiles the whole NLP of each horizon (about a minute each on arm26); measured slower
+            per iteration than ``library`` at 4, 16 and 32 cycles (docs/ocp.md, "Compiled code").
         compile_jobs: compiler processes for a library (default: every core).
         accept_acceptable: count IPOPT's ``Solved_To_Acceptable_Level`` as converged, as CasADi's
             ``success`` flag does (and so the authors' code, docs/authors-code.md D11). Default
@@ -206,11 +207,10 @@ class SolverOptions:
         check_ipopt_options(tuple(sorted((k, repr(v)) for k, v in self.ipopt_options()["ipopt"].items())))
 
     def resolved_cache_dir(self) -> Path:
-        """Directory of the compiled-NLP cache."""
-        if self.cache_dir is not None:
-            return Path(self.cache_dir)
-        env = os.environ.get("FATIGUE_PIN_CACHE")
-        return Path(env) if env else Path.home() / ".cache" / "fatigue_pin"
+        """Directory of the compiled-code cache (:func:`fatigue_pin.ocp.compiled.cache_folder`)."""
+        from fatigue_pin.ocp.compiled import cache_folder
+
+        return cache_folder(self.cache_dir)
 
 
 def _ipopt_refusal(name: str, value: Any, said: list[str], exc: Exception) -> ParameterError:
@@ -306,20 +306,6 @@ class NlpResult:
     wall_time_s: float
     constraint_violation: float = float("nan")
     kind: str = ""
-
-
-def _compile_shared(source: Path, target: Path, options: SolverOptions) -> None:
-    """Compile generated C into a shared library, atomically placed at ``target``, with
-    :func:`fatigue_pin.ocp.compiled.compile_shared`: ``-fopenmp`` when the code has OpenMP pragmas
-    (intervals mapped with ``parallel="openmp"``), dropped if the compiler lacks OpenMP, and a
-    ``-march=native`` build retried with portable flags if it fails."""
-    from fatigue_pin.ocp.compiled import compile_shared
-
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=target.parent) as tmp:
-        tmp_so = Path(tmp) / target.name
-        compile_shared([source], tmp_so, options.build_options())
-        os.replace(tmp_so, target)
 
 
 def generate_nlp_source(solver: ca.Function, name: str, folder: Path) -> Path:
@@ -443,10 +429,11 @@ class NlpSolver:
             key = code + " ".join(self.options.compiler_flags).encode() + _host_key(self.options)
             digest = hashlib.sha256(key).hexdigest()[:20]
             target = self.options.resolved_cache_dir() / f"{name}_{digest}.so"
-            if not target.exists():
+            if not verify_entry(target):  # the compile cache's lock, checksum and atomic rename
                 with self._progress.task(f"compiling {self._label} (once per machine)", expected_s=len(code) / 100_000):
-                    _compile_shared(source, target, self.options)
-                self.compile_time_s = time.perf_counter() - t0
+                    built = cached_build(target, lambda tmp_so: compile_shared([source], tmp_so, self.options.build_options()))
+                if built:
+                    self.compile_time_s = time.perf_counter() - t0
         self.compiled_path = target
         return str(target)
 

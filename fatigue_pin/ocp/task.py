@@ -239,7 +239,7 @@ class FrameTarget:
                 raise TaskError(
                     f"{owner}: the initial configuration puts the frame {off:.4f} m outside its phase-0 target "
                     f"{list(self.position)} +- {self.tolerance} m; set task.q_init to a posture that meets it "
-                    "(fatigue_pin.ocp.guesses.solve_ik finds one)"
+                    "(fatigue_pin.robot.ik.solve_ik finds one)"
                 )
 
 

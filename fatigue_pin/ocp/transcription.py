@@ -38,6 +38,7 @@ import numpy as np
 
 from fatigue_pin.ocp.blocks import BlockPair, MappedCall, block_functions, differentiated_inputs, nlp_derivatives
 from fatigue_pin.ocp.costs import IntervalVariables
+from fatigue_pin.ocp.guesses import GUESSES, initial_guess
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.problem import Problem, StateLayout
 from fatigue_pin.core.progress import Progress
@@ -300,8 +301,6 @@ class OcpSolution:
         return self.u[:, self.layout.nv :]
 
 
-#: initial-guess strategies of :meth:`Ocp.initial_guess`
-GUESSES = ("rest", "physical", "ik")
 
 
 class Ocp:
@@ -552,7 +551,8 @@ class Ocp:
         """The problem's initial state (nx,)."""
         return self.problem.initial_state()
 
-    def _x_init(self, x_init: np.ndarray | None) -> np.ndarray:
+    def start_state(self, x_init: np.ndarray | None = None) -> np.ndarray:
+        """``x_init`` (nx,) checked for size, or the problem's initial state when None."""
         if x_init is None:
             return self.initial_state()
         x_init = np.asarray(x_init, dtype=float).reshape(-1)
@@ -615,7 +615,7 @@ class Ocp:
             weights: cost weights, by name (others keep the problem's) or as a full vector.
             fatigue: stacked fatigue parameters (n_params,); default the actuators'.
         """
-        x_init = self._x_init(x_init)
+        x_init = self.start_state(x_init)
         X_lb, X_ub = self.state_bounds(x_init, x_init if x_end is None else x_end)
         U_lb, U_ub = self.control_bounds()
         values: dict[str, np.ndarray] = {
@@ -639,45 +639,10 @@ class Ocp:
 
     # -- initial guess ------------------------------------------------------------------------------
 
-    def rollout_fatigue(self, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """States (N+1, nx) from given q, qdot and controls, with the fatigue states integrated
-        forward from ``x_init``'s through the interval function, so that they are continuous."""
-        N, L = self.n_intervals, self.layout
-        x = np.zeros((N + 1, L.nx))
-        x[:, L.q], x[:, L.v] = q, qdot
-        x[0, L.m] = x_init[L.m]
-        p = self.actuators.param_vector()
-        for k in range(N):
-            m = np.asarray(self.functions.F_fatigue(x[k, L.m], u[k], p)).reshape(-1)
-            x[k + 1, L.m] = np.clip(m, 0.0, 1.0)
-        return x
-
-    def rest_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Every node at the initial state, zero torque. Shapes (N+1, nx), (N, nu)."""
-        x_init = self._x_init(x_init)
-        return np.tile(x_init, (self.n_intervals + 1, 1)), np.zeros((self.n_intervals, self.layout.nu))
-
     def initial_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The initial guess named by ``guess`` (``rest``, ``physical`` or ``ik``)."""
-        if self.guess == "physical":
-            return self.physical_guess(x_init)
-        if self.guess == "ik":  # inverse kinematics of the frame targets (fatigue_pin.ocp.guesses)
-            from fatigue_pin.ocp.guesses import ik_guess
-
-            return ik_guess(self, x_init)
-        return self.rest_guess(x_init)
-
-    def physical_guess(self, x_init: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """The joints on a smooth motion through their targets (:meth:`Task.reference_trajectory`),
-        the inverse-dynamics torques split into the halves, and the fatigue states integrated
-        from those torques. Shapes (N+1, nx), (N, nu)."""
-        x_init = self._x_init(x_init)
-        N = self.n_intervals
-        q, qdot, qddot = self.task.reference_trajectory(self.model, self.t, x_init[self.layout.q])
-        tau = np.array([np.asarray(self.model.rnea(q[k], qdot[k], qddot[k])).reshape(-1) for k in range(N)])
-        tau = np.clip(tau, self.actuators.tau_minus_limits, self.actuators.tau_plus_limits)
-        u = np.hstack([np.maximum(tau, 0.0), np.minimum(tau, 0.0)])
-        return self.rollout_fatigue(x_init, q, qdot, u), u
+        """The initial guess named by ``guess`` (:mod:`fatigue_pin.ocp.guesses`): states (N+1, nx),
+        controls (N, nu)."""
+        return initial_guess(self, self.guess, x_init)
 
     def flatten(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Decision vector in the NLP's order (X, U[, T]) from states (N+1, nx) and controls (N, nu)."""
@@ -731,7 +696,7 @@ class Ocp:
         Returns:
             An :class:`OcpSolution`; check ``success`` before using it as optimal.
         """
-        x_init = self._x_init(x_init)
+        x_init = self.start_state(x_init)
         if guess is None:
             guess = self.initial_guess(x_init)
         w = self.weight_vector(weights)

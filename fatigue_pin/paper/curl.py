@@ -1,4 +1,4 @@
-"""The reference study's numbers: Puchaud, Michaud & Begon (2023), ``SPEC.md``.
+"""The reference study's numbers: Puchaud, Michaud & Begon (2023); docs/reproduction.md and docs/authors-code.md.
 
 Every value that belongs to the paper (the curl task, its fatigue rates, weights, the values on
 which its text and its authors' code differ, and its published tables) lives here and in the
@@ -36,7 +36,7 @@ SUBSTEPS = 5
 
 @dataclass(frozen=True)
 class Preset:
-    """Values on which the paper text and the authors' code differ (SPEC section 4).
+    """Values on which the paper text and the authors' code differ (docs/authors-code.md).
 
     Attributes:
         name: ``paper`` (the text) or ``authors-code`` (the code that produced the published results).
@@ -74,7 +74,7 @@ def elbow_params(S: float = 0.0) -> XiaFatigue:
 
 
 def ocp_params(variant: str = "authors-code", S: float = 10.0) -> XiaFatigue:
-    """Fatigue values of the optimal control problems (paper section 3, SPEC section 4).
+    """Fatigue values of the optimal control problems (paper section 3).
 
     LD = LR = 10, F = 0.456, S = 10 (1/s). ``R`` depends on the source: ``"paper"`` (the text)
     gives 0.00094, ``"authors-code"`` (the code that produced the published results) 0.0094.
@@ -82,14 +82,14 @@ def ocp_params(variant: str = "authors-code", S: float = 10.0) -> XiaFatigue:
     return XiaFatigue(LD=10.0, LR=10.0, F=0.456, R=preset(variant).R, S=S)
 
 
-#: SPEC section 5: the paper's repetitions (with S = 10, without stabiliser S = 0).
+#: The paper's repetitions (with S = 10, without stabiliser S = 0).
 PAPER_REPETITIONS = {
     ("full", 10.0): {"fatigue-torque": 32, "fatigue": 32, "torque": 32},
     ("full", 0.0): {"fatigue-torque": 20, "fatigue": 18, "torque": 14},
     ("sliding", 10.0): {"fatigue-torque": 21, "fatigue": 20, "torque": 20},
     ("sliding", 0.0): {"fatigue-torque": 21, "fatigue": 20, "torque": 9},
 }
-#: SPEC section 5: the paper's solve times (minutes) with S = 0.
+#: The paper's solve times (minutes) with S = 0.
 PAPER_MINUTES_S0 = {("full", c): v for c, v in zip(COSTS, (41.8, 11.7, 1.70))} | {
     ("sliding", c): v for c, v in zip(COSTS, (10.0, 9.9, 0.39))
 }

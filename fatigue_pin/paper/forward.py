@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import datetime
 import math
-import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fatigue_pin.core.files import atomic_write
 from fatigue_pin.fatigue.models import FatigueParams, FatigueTrajectory, simulate
 from fatigue_pin.paper.curl import elbow_params
 
@@ -57,7 +57,7 @@ __all__ = [
 PAPER_STUDY1: dict[str, float] = {"rmse_order": 1e-14, "final_abs_error_below": 1e-14}
 
 #: Paper, study 2 (Table 3): (S, mr0) -> (times (s) to precision 1e-5, 1e-6, 1e-7, 1e-8 (NaN:
-#: never), (|d ma|, |d mr|, |d mf|) at 60 s). Values as printed (SPEC section 2).
+#: never), (|d ma|, |d mr|, |d mf|) at 60 s). Values as printed (paper section 2).
 PAPER_STUDY2: dict[tuple[float, float], tuple[tuple[float, ...], tuple[float, ...]]] = {
     (5.0, 1.0001): ((0.46, 0.92, 1.40, 1.89), (7.04e-5, 2.57e-7, 7.06e-5)),
     (5.0, 0.9999): ((0.46, 0.92, 1.40, 1.89), (7.06e-5, 4.67e-8, 7.06e-5)),
@@ -325,15 +325,14 @@ def _write_run(
 
 
 def write_h5(res: ForwardStudiesResult, path: Path | str) -> Path:
-    """Write the results to ``path`` (crash-safe: ``path.tmp`` then ``os.replace``). Layout: ``docs/results.md``."""
+    """Write the results to ``path`` (atomic: :func:`fatigue_pin.core.files.atomic_write`). Layout: ``docs/results.md``."""
     import h5py
 
     from fatigue_pin.core.version import __version__ as version
 
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
     cfg = res.config
-    try:
+    def fill(tmp: Path) -> None:
         with h5py.File(tmp, "w") as h5:
             h5.attrs["description"] = "fatigue_pin forward studies of the 3CC / 3CC-S fatigue model (paper section 2)"
             h5.attrs["fatigue_pin_version"] = version
@@ -367,10 +366,7 @@ def write_h5(res: ForwardStudiesResult, path: Path | str) -> Path:
                 g.attrs["time_to_first_precision"] = np.asarray(run.time_to_first_precision, dtype=float)
                 g.attrs["final_abs_error"] = np.asarray(run.final_abs_error, dtype=float)
                 g.attrs["max_error_after_1s"] = run.max_error_after_1s
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic_write(path, fill)
     return path
 
 

@@ -70,6 +70,7 @@ def _run_job(job: Job) -> dict[str, object]:
 
 
 def _figures_and_replays(files: list[Path], out: Path, progress: Progress) -> list[Path]:
+    from fatigue_pin.paper.forward_file import is_forward_file, plot_forward_file
     from fatigue_pin.viz.plots import plot_file
     from fatigue_pin.viz.replay import export_html
     from fatigue_pin.io.results import list_runs, read_run
@@ -78,9 +79,10 @@ def _figures_and_replays(files: list[Path], out: Path, progress: Progress) -> li
     for path in files:
         if not path.exists():
             continue
-        written += plot_file(path, out / "figures")
-        if path.name == "forward_studies.h5":
+        if is_forward_file(path):
+            written += plot_forward_file(path, out / "figures")
             continue
+        written += plot_file(path, out / "figures")
         for name in list_runs(path):
             html = out / "replay" / f"{name.replace('/', '_')}.html"
             export_html(read_run(path, name), html)
@@ -185,7 +187,7 @@ def _report(rows: list[dict[str, object]], forward_table: str, preset: str, quic
         "# Reproduction report",
         "",
         f"Preset `{preset}`{' (quick subset: capped runs, repetitions are lower bounds)' if quick else ''}; "
-        f"total wall time {elapsed / 60:.1f} min. Paper values: `SPEC.md` section 5.",
+        f"total wall time {elapsed / 60:.1f} min. Paper values: docs/reproduction.md.",
         "",
         "## Forward studies (paper section 2)",
         "",

@@ -194,7 +194,7 @@ class VerifyReport:
 
 
 def _xia(m: np.ndarray, TL: float, p: dict[str, float]) -> np.ndarray:
-    """Xia's 3CC with stabiliser S and rest multiplier r (docs/fatigue.md; SPEC section 1)."""
+    """Xia's 3CC with stabiliser S and rest multiplier r (docs/fatigue.md)."""
     ma, mr, mf = m
     if ma < TL:
         C = p["LD"] * (TL - ma) if mr >= TL - ma else p["LD"] * mr

@@ -21,9 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-import h5py
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -31,12 +29,8 @@ from matplotlib.figure import Figure
 
 from fatigue_pin.io.results import ResultFileError, RunResult, list_runs, read_run, read_search
 
-if TYPE_CHECKING:
-    from fatigue_pin.paper.forward import ForwardStudiesResult
-
 #: Colours of the fatigue compartments (as in the forward-study figures).
 STATE_COLORS = {"ma": "#00cc96", "mr": "#ffa15a", "mf": "#ef553b"}
-DEFAULT_TAU_LIMIT = 50.0  # N m, used when a run has no ``tau_limits`` attribute
 DPI = 120
 
 
@@ -72,27 +66,6 @@ def _cycle_colors(n: int) -> np.ndarray:
     from matplotlib import colormaps
 
     return colormaps["viridis"](np.linspace(0.0, 0.9, max(n, 1)))
-
-
-def tau_limits(run: RunResult) -> np.ndarray:
-    """Signed torque limit of every half (N m), (halves,): attribute ``tau_limits``, else
-    +-50 N m (+ for ``*_plus``, - for ``*_minus`` halves)."""
-    lim = run.attrs.get("tau_limits")
-    if lim is not None and np.size(lim) == len(run.actuator_names):
-        return np.asarray(lim, dtype=float).reshape(-1)
-    return np.array([-DEFAULT_TAU_LIMIT if h.endswith("_minus") else DEFAULT_TAU_LIMIT for h in run.actuator_names])
-
-
-def target_loads(run: RunResult) -> np.ndarray:
-    """Target load TL = tau / tau_limit of every half on every interval (dimensionless), (intervals, halves)."""
-    lim = tau_limits(run)
-    tl = np.empty((run.tau_plus.shape[0], len(run.actuator_names)))
-    for h, name in enumerate(run.actuator_names):
-        joint, _, sign = name.rpartition("_")
-        j = run.joint_names.index(joint) if joint in run.joint_names else h // 2
-        tau = run.tau_minus[:, j] if sign == "minus" or (sign != "plus" and h % 2) else run.tau_plus[:, j]
-        tl[:, h] = tau / lim[h]
-    return tl
 
 
 # -- per-run figures -----------------------------------------------------------------------------
@@ -131,7 +104,7 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
     them: ma, mr, mf for Xia's model), with its target load TL (black steps); TL must stay below
     1 - mf, the lower edge of the mf band."""
     halves = run.actuator_names
-    tl = target_loads(run)
+    tl = run.target_loads()
     ncols = 2
     nrows = (len(halves) + 1) // ncols
     fig = _figure(figsize=(12, 3.0 * nrows + 0.6))
@@ -146,7 +119,7 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
             ax.axvline(run.t[run.cycle_slice(c).start], color="w", lw=0.4, alpha=0.6)
         ax.set_ylim(0.0, 1.05)
         ax.set_xlim(run.t[0], run.t[-1])
-        ax.set_title(f"{name} (limit {tau_limits(run)[h]:+g} N m)", fontsize=10)
+        ax.set_title(f"{name} (limit {run.signed_limits[h]:+g} N m)", fontsize=10)
         ax.set_ylabel("fraction (-)")
     for ax in axes[len(halves):]:
         ax.set_visible(False)
@@ -160,7 +133,7 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
 
 def plot_torque_limits(run: RunResult, out_dir: Path) -> list[Path]:
     """Available torque (1 - mf) * tau_limit (N m) of every half at the start and at the end of each cycle."""
-    lim = tau_limits(run)
+    lim = run.signed_limits
     cycles = np.arange(0, run.n_cycles + 1)
     fig = _figure(figsize=(9, 5))
     axes = fig.subplots(1, 2, sharex=True)
@@ -253,7 +226,7 @@ def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
 
 def peak_torques(run: RunResult) -> np.ndarray:
     """Largest |tau| of every half within each cycle (N m, >= 0), (cycles, halves)."""
-    tau = np.abs(target_loads(run) * tau_limits(run))
+    tau = np.abs(run.target_loads() * run.signed_limits)
     n = run.n_cycles
     per = tau.shape[0] // max(n, 1)
     return np.array([tau[c * per:(c + 1) * per].max(axis=0) for c in range(n)]).reshape(n, -1)
@@ -265,7 +238,7 @@ def plot_capacity(run: RunResult, out_dir: Path, holding: dict[str, float] | Non
     the end of each cycle (N m) against the largest |torque| the cycle used, and a horizontal line
     at ``holding[joint]`` (N m, e.g. the gravity torque at the cycle's start posture), if given.
     One panel per half that does any work."""
-    lim = tau_limits(run)
+    lim = run.signed_limits
     peak = peak_torques(run)
     used = [h for h in range(len(run.actuator_names)) if peak[:, h].max() > 1e-3 * abs(lim[h])]
     fig = _figure(figsize=(4.2 * max(len(used), 1), 4))
@@ -334,7 +307,7 @@ def plot_search(name: str, table: np.ndarray, out_dir: Path) -> list[Path]:
     return _save(fig, out_dir, f"search_{run_prefix(name)}")
 
 
-def _png_as_pdf(png: Path) -> Path:
+def png_as_pdf(png: Path) -> Path:
     """A PDF page holding a PNG (raster), for figures drawn elsewhere as PNG only."""
     import matplotlib.image
 
@@ -349,64 +322,9 @@ def _png_as_pdf(png: Path) -> Path:
     return pdf
 
 
-def read_forward_studies(path: Path) -> ForwardStudiesResult:
-    """Rebuild the in-memory forward-study results from ``forward_studies.h5`` (layout: docs/results.md)."""
-    from fatigue_pin.fatigue.models import FatigueParams, FatigueTrajectory
-    from fatigue_pin.paper.forward import ForwardStudiesResult, ForwardStudyConfig, Study2Run
-
-    def trajectory(g: h5py.Group) -> FatigueTrajectory:
-        a = g.attrs
-        params = FatigueParams(LD=float(a["LD"]), LR=float(a["LR"]), F=float(a["F"]), R=float(a["R"]),
-                               S=float(a["S"]), r=float(a.get("r", 1.0)))
-        return FatigueTrajectory(g["t"][()], g["ma"][()], g["mr"][()], g["mf"][()], params, str(a["method"]),
-                                 float(a["rtol"]), float(a["atol"]), bool(a["success"]), "", int(a["nfev"]))
-
-    with h5py.File(path, "r") as h5:
-        s1 = {k: trajectory(h5[f"study1/{k}"]) for k in ("3cc", "3cc_s")}
-        g0 = h5["study1/3cc"]
-        refs: dict[float, FatigueTrajectory] = {}
-        runs: list[Study2Run] = []
-        groups = [h5[f"study2/{k}"] for k in h5["study2"]]
-        for g in groups:
-            if g.attrs["role"] == "reference":
-                refs[float(g.attrs["S"])] = trajectory(g)
-        refs = dict(sorted(refs.items()))
-        for g in sorted((g for g in groups if g.attrs["role"] == "perturbed"),
-                        key=lambda g: (float(g.attrs["S"]), -float(g.attrs["m0"][1]))):
-            a = g.attrs
-            runs.append(Study2Run(
-                S=float(a["S"]), mr0=float(a["m0"][1]), trajectory=trajectory(g), reference=refs[float(a["S"])],
-                time_to_precision=tuple(a["time_to_precision"]), time_to_first_precision=tuple(a["time_to_first_precision"]),
-                final_abs_error=tuple(a["final_abs_error"]), max_error_after_1s=float(a["max_error_after_1s"]),
-            ))
-        cfg = ForwardStudyConfig(
-            params=s1["3cc"].params.with_(S=0.0), TL=float(g0.attrs["TL"]), t_end=float(g0.attrs["t_end"]),
-            n_eval=int(h5.attrs.get("n_eval", g0["t"].shape[0])), method=str(g0.attrs["method"]),
-            rtol=float(g0.attrs["rtol"]), atol=float(g0.attrs["atol"]), study1_S=float(h5["study1/3cc_s"].attrs["S"]),
-            study2_S=tuple(refs), study2_mr0=tuple(dict.fromkeys(r.mr0 for r in runs)),
-            precisions=tuple(float(p) for p in h5.attrs["precisions"]),
-        )
-        rmse = np.asarray(g0.attrs["rmse"], dtype=float)
-        final = np.asarray(g0.attrs["final_abs_error"], dtype=float)
-    return ForwardStudiesResult(cfg, s1, rmse, final, tuple(runs), refs, Path(path))
-
-
-def plot_forward_file(path: Path, out_dir: Path) -> list[Path]:
-    """The forward-study figures of ``forward_studies.h5``, drawn by
-    :func:`fatigue_pin.paper.forward.plot_forward_studies` (PNG), each also as a raster PDF."""
-    from fatigue_pin.paper.forward import plot_forward_studies
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths: list[Path] = []
-    for png in plot_forward_studies(read_forward_studies(path), out).values():
-        paths += [png, _png_as_pdf(png)]
-    return paths
-
-
 def plot_file(path: Path, out_dir: Path) -> list[Path]:
     """Every applicable figure of a result file: per run (and a comparison when there are
-    several), per max-cycles search, or the forward studies. Returns the files written."""
+    several), per max-cycles search, or a sweep's folder. Returns the files written."""
     path = Path(path)
     if path.is_dir() and (path / "summary.csv").is_file():  # a sweep's output folder
         from fatigue_pin.viz.sweeps import plot_sweep
@@ -424,11 +342,7 @@ def plot_file(path: Path, out_dir: Path) -> list[Path]:
             if len(table):
                 paths += plot_search(name, table, out_dir)
         return paths
-    with h5py.File(path, "r") as h5:
-        forward = "study1" in h5 and "study2" in h5
-        searches = "search" in h5
-    if forward:
-        return plot_forward_file(path, out_dir)
+    searches = [p for name, table in read_search(path).items() if len(table) for p in plot_search(name, table, out_dir)]
     if searches:
-        return [p for name, table in read_search(path).items() if len(table) for p in plot_search(name, table, out_dir)]
-    raise ResultFileError(f"{str(path)!r} holds neither OCP runs, max-cycles searches nor forward studies")
+        return searches
+    raise ResultFileError(f"{str(path)!r} holds neither OCP runs nor max-cycles searches")

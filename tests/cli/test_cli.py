@@ -32,7 +32,14 @@ def test_ur5_joint_space_study_solves_replays_and_plots(tmp_path, capsys):
     assert html.stat().st_size > 1_000_000 and b"sliding/ur5_lift_swing" in html.read_bytes()  # meshes inlined
     figures = tmp_path / "figures"
     assert main(["plot", str(out), "--out", str(figures)]) == 0
-    assert (figures / "sliding_ur5_lift_swing_fatigue_states.png").exists()
+    printed = {Path(line.split(maxsplit=1)[1]).name for line in capsys.readouterr().out.splitlines() if line.startswith("wrote ")}
+    per_run = ("joint_angles", "fatigue_states", "torque_limits", "cycle_costs", "solve_time")
+    assert {f"sliding_ur5_lift_swing_{f}.{ext}" for f in per_run for ext in ("png", "pdf")} <= printed
+    import matplotlib.image
+
+    img = matplotlib.image.imread(figures / "sliding_ur5_lift_swing_fatigue_states.png")
+    assert img.shape[0] > 300 and img.shape[1] > 300 and (img != img[0, 0]).any()  # a drawn figure, not a blank page
+    assert (figures / "sliding_ur5_lift_swing_joint_angles.pdf").read_bytes().startswith(b"%PDF")
 
 
 def test_errors_are_one_line_with_exit_code_2(tmp_path, capsys):

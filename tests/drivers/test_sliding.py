@@ -14,6 +14,7 @@ import pytest
 
 from fatigue_pin.io.results import list_runs, read_run
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings, repetitions
+from fatigue_pin.io.results import ResultFile
 from fatigue_pin.io.study import Study
 
 
@@ -26,7 +27,7 @@ def runner(small_problem, small_study):
 @pytest.fixture(scope="module")
 def full_run(runner, tmp_path_factory):
     out = tmp_path_factory.mktemp("sliding") / "run.h5"
-    return runner.run(out), out
+    return runner.run(ResultFile(out)), out
 
 
 def test_window_count_rule(full_run):
@@ -73,9 +74,9 @@ def test_each_window_starts_from_the_previous_one(runner):
 def test_file_written_after_every_window_and_resume_equals_uninterrupted(full_run, runner, tmp_path):
     reference, _ = full_run
     out = tmp_path / "resumed.h5"
-    first = runner.run(out, stop_after=1)  # as if the run had been stopped after one window
+    first = runner.run(ResultFile(out), stop_after=1)  # as if the run had been stopped after one window
     assert read_run(out, first.name).windows.shape == (1,)
-    resumed = runner.run(out, resume=True)
+    resumed = runner.run(ResultFile(out), resume=True)
     assert resumed.windows.shape == reference.windows.shape
     for name in ("q", "qdot", "tau_plus", "tau_minus", "ma", "mr", "mf", "cycle_costs"):
         assert np.allclose(getattr(resumed, name), getattr(reference, name), atol=1e-9), name
@@ -126,7 +127,7 @@ def test_resume_refuses_other_settings(full_run, small_study, arm26):
     other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(max_cycles=5), small_study.transcription(),
                            small_study.solver())
     with pytest.raises(ResultFileError, match="weights"):
-        other.run(out, name=read_run(out).name, resume=True)
+        other.run(ResultFile(out), name=read_run(out).name, resume=True)
 
 
 def test_bad_sliding_settings():
@@ -143,12 +144,12 @@ def test_a_failed_window_is_kept_for_inspection(small_problem, small_study, tmp_
     it is stored as the run ``<name>_failed_window``, which file listings and default reads skip."""
     import dataclasses
 
-    from fatigue_pin.drivers.sliding import failed_window_name
+    from fatigue_pin.drivers.run import failed_window_name
 
     solver = dataclasses.replace(small_study.solver(), max_iter=3)
     out = tmp_path / "failed.h5"
     run = SlidingHorizon(small_problem, SlidingSettings(window=3, advance=1, max_cycles=5), small_study.transcription(),
-                         solver).run(out, name="sliding/s")
+                         solver).run(ResultFile(out), name="sliding/s")
     assert run.n_cycles == 0 and not run.windows["converged"].any()
     assert list_runs(out) == ["sliding/s"] and read_run(out).name == "sliding/s"
     assert list_runs(out, failed_windows=True) == ["sliding/s", failed_window_name("sliding/s")]

@@ -11,7 +11,8 @@ import pytest
 
 from fatigue_pin.cli import fatigue as cli_fatigue
 from fatigue_pin.fatigue.calibration import CalibrationDataError, EnduranceData, calibrate, read_endurance_csv, run_calibrate
-from fatigue_pin.fatigue.endurance import OutputLocationError, intermittent_et_closed_form, sustained_et_closed_form
+from fatigue_pin.core.errors import OutputLocationError
+from fatigue_pin.fatigue.endurance import intermittent_et_closed_form, sustained_et_closed_form
 from fatigue_pin.core.errors import FatiguePinError, ParameterError
 from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.fatigue.presets import preset
@@ -175,8 +176,9 @@ def test_cli_calibrate(tmp_path, capsys):
     assert "F = 0.00912" in out and "95 % CI" in out and (tmp_path / "p.json").is_file() and (tmp_path / "p.png").is_file()
 
 
-@pytest.mark.parametrize("out, message", [("missing/p.json", "does not exist"), ("p.txt", "expected a .json file name")])
+@pytest.mark.parametrize("out, message", [("file/p.json", "is not a folder"), ("p.txt", "expected a .json file name")])
 def test_cli_calibrate_checks_output_before_reading(tmp_path, out, message):
+    (tmp_path / "file").write_text("a file where the folder should be")
     args = _parser().parse_args(["calibrate", str(tmp_path / "absent.csv"), "--out", str(tmp_path / out)])
     with pytest.raises(OutputLocationError, match=re.escape(message)):
         args.func(args)

@@ -165,7 +165,7 @@ def test_cli_endurance_checks_output_first(tmp_path):
     target = tmp_path / "file"
     target.write_text("x")
     args = _parser().parse_args(["endurance", "--out", str(target)])
-    with pytest.raises(OutputLocationError, match="is an existing file"):
+    with pytest.raises(OutputLocationError, match="is a file; expected a folder"):
         args.func(args)
     args = _parser().parse_args(["endurance", "--out", str(tmp_path / "e"), "--duty-cycle", "0.5"])
     with pytest.raises(ParameterError, match="--cycle-s"):

@@ -14,6 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
+import fatigue_pin.core.files as files
 import fatigue_pin.io.results as results
 from fatigue_pin.io.results import LAYOUT, ResultFileError, list_runs, read_run, read_search, write_run, write_search
 from conftest import make_run
@@ -126,7 +127,7 @@ def test_a_write_failing_at_any_step_leaves_the_file_unchanged(tmp_path, monkeyp
     def fail(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    target = {"copy": (results.shutil, "copyfile"), "h5": (results, "_write_run"), "fsync": (results, "_fsync"),
+    target = {"copy": (files.shutil, "copyfile"), "h5": (results, "_write_run"), "fsync": (results, "fsync"),
               "replace": (results.os, "replace")}[step]
     monkeypatch.setattr(*target, fail)
     with pytest.raises(ResultFileError, match=r"cannot write '.*a.h5': the disk is full \(no space left on device\); "

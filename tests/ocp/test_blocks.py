@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import small_curl
+from fatigue_pin.ocp.guesses import rest_guess
 from fatigue_pin.ocp.blocks import MappedCall, block_functions, nlp_derivatives
 from fatigue_pin.io.study import Study
 from fatigue_pin.ocp.transcription import Ocp
@@ -39,7 +40,7 @@ def _compare(ocp: Ocp, seed: int = 0) -> None:
     jac_ref, hess_ref = reference.get_function("nlp_jac_g"), reference.get_function("nlp_hess_l")
     rng = np.random.default_rng(seed)
     p0 = ocp.parameter_vector()
-    z0 = ocp.flatten(*ocp.rest_guess())
+    z0 = ocp.flatten(*rest_guess(ocp))
     for _ in range(3):
         x = z0 + 0.3 * rng.normal(size=z0.size)
         p = p0 * (1 + 0.1 * rng.normal(size=p0.size))

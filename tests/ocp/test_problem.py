@@ -12,7 +12,8 @@ import pytest
 from conftest import small_curl
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.models import FatigueModel
-from fatigue_pin.drivers.full import OcpBuilder, solution_to_run
+from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.drivers.run import solution_to_run
 from fatigue_pin.paper.curl import ocp_params
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.io.results import read_run, write_run

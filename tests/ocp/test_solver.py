@@ -72,6 +72,20 @@ def test_acceptable_level_counts_only_when_asked():
     assert not NlpSolver.converged(lenient, "Maximum_Iterations_Exceeded")
 
 
+def test_failure_kinds_tell_infeasibility_from_limits():
+    from fatigue_pin.ocp.solver import failure_kind
+
+    assert failure_kind("Solve_Succeeded", [1.0, 1e-8], 1e-4) == "converged"
+    assert failure_kind("Infeasible_Problem_Detected", [1.0], 1e-4) == "infeasible"
+    assert failure_kind("Restoration_Failed", [1.0], 1e-4) == "infeasible"
+    # stopped by a limit while the violation grew from its lowest point: moving away from feasibility
+    assert failure_kind("Maximum_Iterations_Exceeded", [1.0, 1e-3, 0.5], 1e-4) == "infeasible-growing"
+    # stopped by a limit while (nearly) feasible, or still decreasing: just not converged
+    assert failure_kind("Maximum_Iterations_Exceeded", [1.0, 1e-3, 1e-6], 1e-4) == "not-converged"
+    assert failure_kind("Maximum_WallTime_Exceeded", [1.0, 0.5, 0.4], 1e-4) == "not-converged"
+    assert failure_kind("Error_In_Step_Computation", [1e-9], 1e-4) == "numerical"
+
+
 @pytest.mark.parametrize("options, message", [
     (dict(ipopt={"nosuchoption": 3}), r"solver.ipopt.nosuchoption: IPOPT has no option 'nosuchoption'"),
     (dict(linear_solver="foo"), r"solver.linear_solver = 'foo': not a valid IPOPT setting; expected one of \['ma27', .*'mumps'"),

@@ -50,16 +50,17 @@ def test_capacity_figure_and_peak_torques(tmp_path: Path) -> None:
     _check(paths, {"full_fatigue_torque_capacity"})
 
 
-def test_target_loads_and_limits() -> None:
+def test_target_loads_come_from_the_stored_limits() -> None:
     run = make_curl_run()
-    tl = plots.target_loads(run)
+    tl = run.target_loads()
     np.testing.assert_allclose(tl[:, 0], run.tau_plus[:, 0] / 50.0)
     np.testing.assert_allclose(tl[:, 3], run.tau_minus[:, 1] / -50.0)
     assert (tl >= 0).all()
-    del run.attrs["tau_limits"]
-    np.testing.assert_allclose(plots.tau_limits(run), [50, -50, 50, -50])
     run.attrs["tau_limits"] = np.array([40.0, -30.0, 20.0, -10.0])
-    np.testing.assert_allclose(plots.target_loads(run)[:, 1], run.tau_minus[:, 0] / -30.0)
+    np.testing.assert_allclose(run.target_loads()[:, 1], run.tau_minus[:, 0] / -30.0)
+    del run.attrs["tau_limits"]  # no guessed limits: a run without them says so
+    with pytest.raises(ResultFileError, match="tau_limits"):
+        run.target_loads()
 
 
 def test_plot_file_with_several_runs(tmp_path: Path) -> None:
@@ -75,18 +76,6 @@ def test_plot_file_with_several_runs(tmp_path: Path) -> None:
     _check(paths, expected | {"runs_comparison", "search_full_fatigue_torque"})
 
 
-def test_plot_file_forward_studies(tmp_path: Path) -> None:
-    from fatigue_pin.paper.forward import ForwardStudyConfig, run_forward_studies
-
-    cfg = ForwardStudyConfig(t_end=3.0, n_eval=301)
-    res = run_forward_studies(tmp_path / "fwd", progress=None, config=cfg)
-    back = plots.read_forward_studies(res.h5_path)
-    assert [(r.S, r.mr0) for r in back.study2] == [(r.S, r.mr0) for r in res.study2]
-    np.testing.assert_array_equal(back.study2[-1].trajectory.mf, res.study2[-1].trajectory.mf)
-    paths = plots.plot_file(res.h5_path, tmp_path / "figs")
-    _check(paths, {"study1_states", "study2_states", "study2_invariant_error"})
-
-
 def test_plot_file_rejects_other_files(tmp_path: Path) -> None:
     import h5py
 
@@ -96,3 +85,38 @@ def test_plot_file_rejects_other_files(tmp_path: Path) -> None:
         plots.plot_file(tmp_path / "other.h5", tmp_path / "out")
     with pytest.raises(ResultFileError, match="not found"):
         plots.plot_file(tmp_path / "missing.h5", tmp_path / "out")
+
+
+def _drawn(monkeypatch) -> list:
+    """Capture the figures the plot functions save (their lines hold the data drawn)."""
+    figures: list = []
+    save = plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, out, stem: figures.append(fig) or save(fig, out, stem))
+    return figures
+
+
+def test_figures_draw_the_run_s_data(monkeypatch, tmp_path: Path) -> None:
+    """What is drawn is the run: each cycle's joint angles (deg), each half's mf, the stored
+    torque limits at the cycle ends; not just a file that exists."""
+    run = make_curl_run(n_cycles=3)
+    figures = _drawn(monkeypatch)
+    plots.plot_joint_angles(run, tmp_path)
+    elbow = figures[-1].axes[1]
+    assert elbow.get_title() == "elbow"
+    lines = elbow.get_lines()
+    assert len(lines) == 3
+    for c, line in enumerate(lines):
+        s = run.cycle_slice(c)
+        np.testing.assert_allclose(line.get_ydata(), np.degrees(run.q[s, 1]))
+        np.testing.assert_allclose(line.get_xdata(), run.t[s] - run.t[s.start])
+    plots.plot_fatigue_states(run, tmp_path)
+    elbow_plus = figures[-1].axes[2]
+    assert elbow_plus.get_title() == "elbow_plus (limit +50 N m)"
+    (tl,) = [ln for ln in elbow_plus.get_lines() if ln.get_drawstyle() == "steps-post"]  # the target load; states: bands
+    np.testing.assert_allclose(tl.get_ydata(), run.tau_plus[:, 1] / 50.0)
+    top = elbow_plus.collections[-1].get_paths()[0].vertices[:, 1].max()  # the mf band reaches ma + mr + mf
+    assert top == pytest.approx((run.ma[:, 2] + run.mr[:, 2] + run.mf[:, 2]).max())
+    plots.plot_torque_limits(run, tmp_path)
+    drawn = [np.asarray(line.get_ydata()) for ax in figures[-1].axes for line in ax.get_lines()]
+    expected = np.concatenate([[50.0 * (1 - run.fatigued[0, 2])], run.torque_limits[:, 2]])
+    assert any(d.shape == expected.shape and np.allclose(d, expected) for d in drawn)

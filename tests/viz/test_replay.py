@@ -99,7 +99,7 @@ def test_export_html_is_self_contained(run: RunResult, tmp_path: Path) -> None:
 def test_local_server_binds_loopback_only() -> None:
     import psutil
 
-    from fatigue_pin.viz.replay import LOCALHOST, start_local_server
+    from fatigue_pin.viz.server import LOCALHOST, start_local_server
 
     with start_local_server() as server:
         assert server.web_url.startswith("http://127.0.0.1:") and server.zmq_url.startswith("tcp://127.0.0.1:")
@@ -111,7 +111,7 @@ def test_local_server_binds_loopback_only() -> None:
 
 
 def test_serve_plays_and_obeys_the_prompt(run: RunResult, capsys: pytest.CaptureFixture[str]) -> None:
-    from fatigue_pin.viz.replay import serve
+    from fatigue_pin.viz.server import serve
 
     answers = iter(["9", "2", "q"])
     serve(run, cycle=0, input_fn=lambda _prompt: next(answers), wait_for_browser=False)

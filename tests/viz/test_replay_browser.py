@@ -275,7 +275,7 @@ def make_carry_run(n_cycles: int = 2) -> RunResult:
         tau_minus=np.zeros((t.size - 1, model.nv)), fatigue={"ma": ma, "mr": 1 - ma - mf, "mf": mf},
         cycle_costs=np.zeros((n_cycles, 1)), torque_limits=(1 - mf[n::n]) * limits, joint_names=model.joint_names,
         actuator_names=halves, cost_terms=("fatigue",), cycle_wall_time_s=np.ones(n_cycles),
-        urdf=Path(model.urdf_path).read_text(),
+        urdf=Path(model.urdf_path).read_text(), fatigued=mf,
     )
 
 

@@ -1,0 +1,159 @@
+"""File safety: the one place where outputs are checked before any work, locked, and written so
+that a crash, a kill or a full disk at any moment leaves the old file or the new one, whole.
+
+Every writer of the package goes through these: result files (:mod:`fatigue_pin.io.results`),
+the compiled-code cache (:mod:`fatigue_pin.ocp.compiled`), endurance tables and calibrations
+(:mod:`fatigue_pin.fatigue`), sweep summaries and the paper's forward studies.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Callable, Iterator
+
+from fatigue_pin.core.errors import OutputLocationError
+
+#: bytes a folder must have free, at the least, to receive outputs
+MIN_FREE_BYTES = 1 << 20
+
+
+@contextlib.contextmanager
+def locked(lock_file: Path) -> Iterator[None]:
+    """Hold an exclusive ``flock`` on ``lock_file`` (created if missing) so that concurrent
+    writers take turns. On a file system without locks (some network mounts) the block runs
+    unlocked."""
+    lock_file.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(lock_file, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError as exc:
+            if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.EINVAL):
+                raise
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def fsync(path: Path, directory: bool = False) -> None:
+    """Flush ``path`` (a file, or with ``directory`` a folder's entries) to the disk."""
+    fd = os.open(path, os.O_RDONLY if directory else os.O_RDWR)
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not directory:
+            raise
+    finally:
+        os.close(fd)
+
+
+def clone(src: Path, dst: Path) -> None:
+    """Copy the bytes of ``src`` to ``dst``: a reflink where the file system has them (btrfs,
+    xfs: instant), else a kernel-side copy."""
+    with open(src, "rb") as fin, open(dst, "wb") as fout:
+        try:
+            fcntl.ioctl(fout.fileno(), 0x40049409, fin.fileno())  # FICLONE
+            return
+        except OSError:
+            pass
+    shutil.copyfile(src, dst)  # sendfile / copy_file_range on Linux
+
+
+def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
+    """Make ``path`` the file that ``write(tmp)`` writes at a temporary path beside it: the
+    temporary file is fsynced and renamed over ``path`` (``os.replace``), then the folder is
+    fsynced. On any error the temporary file is removed and ``path`` is unchanged."""
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+        fsync(tmp)
+        os.replace(tmp, path)
+        fsync(path.parent, directory=True)
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    return path
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> Path:
+    """:func:`atomic_write` of ``data``."""
+    return atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+
+def check_space(folder: Path, need: int, what: str) -> None:
+    """Refuse to start ``what`` when the disk of ``folder`` has fewer than ``need`` bytes free."""
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < need:
+        raise OutputLocationError(f"the disk of {str(folder)!r} is full: {free // 1024} KiB free; "
+                                  f"{what} needs at least {-(-need // 1024)} KiB")
+
+
+def check_folder(folder: Path, label: str) -> None:
+    """Create ``folder`` if needed and write (then remove) a small probe file in it, so that a
+    folder that cannot be written is found before any work."""
+    existing = folder
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise OutputLocationError(f"{label} cannot be created: {str(existing)!r} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputLocationError(f"{label} is not writable; expected a folder you can write to")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".fatigue_pin_probe_") as probe:
+            probe.write(b"\0" * 4096)
+            probe.flush()
+            os.fsync(probe.fileno())
+    except OSError as exc:
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise OutputLocationError(f"{label} is on a full disk (no space left on device)") from None
+        raise OutputLocationError(f"{label} is not writable: a file cannot be created in it ({exc.strerror or exc})") from None
+
+
+def check_output_dir(path: str | Path) -> Path:
+    """Check, before any work, that the folder ``path`` can receive output files: it is a folder
+    (created if missing) that can be written to, on a disk that is not full.
+
+    Raises:
+        OutputLocationError: naming the path and what is wrong.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputLocationError(f"output {str(path)!r} is a file; expected a folder (created if missing)")
+    check_folder(path, f"output folder {str(path)!r}")
+    check_space(path, MIN_FREE_BYTES, f"writing to {str(path)!r}")
+    return path
+
+
+def check_output_file(path: str | Path, suffix: str | None = None) -> Path:
+    """Check, before any work, that a file can be written at ``path``: it is not a folder, its
+    folder can be written to (created if missing), it ends with ``suffix`` when one is given,
+    and an existing file there is writable.
+
+    Raises:
+        OutputLocationError: naming the path and what is wrong.
+    """
+    path = Path(path)
+    if suffix is not None and path.suffix.lower() != suffix:
+        raise OutputLocationError(f"output {str(path)!r}: expected a {suffix} file name")
+    if path.is_dir():
+        raise OutputLocationError(f"output {str(path)!r} is a folder; expected a file name")
+    if path.exists() and not os.access(path, os.W_OK):
+        raise OutputLocationError(f"output {str(path)!r} is not writable")
+    folder = path.parent if str(path.parent) else Path(".")
+    check_folder(folder, f"output folder {str(folder)!r}")
+    check_space(folder, MIN_FREE_BYTES, f"writing {str(path)!r}")
+    return path

@@ -1,0 +1,275 @@
+"""The run record: what a driver hands back and stores after every step.
+
+:class:`RunResult` holds one run (a full-horizon solve, a sliding-horizon run stitched from its
+windows, a failed window): node times, states by name, controls, per-cycle costs and limits, the
+labels of every column, its attributes and the study text that made it. :func:`to_run_result`
+and :func:`solution_to_run` build it from an :class:`~fatigue_pin.ocp.transcription.Ocp` and its
+states; nothing else does.
+
+Drivers store runs through a :class:`RunStore` (:class:`fatigue_pin.io.results.ResultFile` is the
+HDF5 one), so the drivers do not depend on the file format.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from fatigue_pin.core.errors import ResultFileError
+
+if TYPE_CHECKING:
+    from fatigue_pin.ocp.transcription import Ocp, OcpSolution
+
+#: Attributes every run group carries.
+RUN_ATTRIBUTES = (
+    "horizon", "n_cycles", "converged", "status", "wall_time_s", "build_time_s", "iterations", "solver", "model",
+    "weights", "fatigue_params",
+)
+
+WINDOW_DTYPE = np.dtype([
+    ("index", "i4"), ("first_cycle", "i4"), ("status", "S40"), ("converged", "?"),
+    ("iterations", "i4"), ("wall_time_s", "f8"), ("objective", "f8"),
+])
+
+SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40"), ("iterations", "i4"), ("wall_time_s", "f8"),
+                         ("kind", "S24"), ("guess", "S24"), ("constraint_violation", "f8")])
+
+
+@dataclass
+class RunResult:
+    """One OCP run (full horizon, or sliding horizon stitched from its windows).
+
+    Shapes: nodes = n_cycles * intervals_per_cycle + 1, intervals = nodes - 1, halves = 2 nv.
+
+    Attributes:
+        name: group name in the file.
+        attrs: run attributes (see :data:`RUN_ATTRIBUTES`; more may be present).
+        t: node times (s), (nodes,).
+        q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
+        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv).
+        fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
+            the columns of halves whose model has no such state.
+        cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
+        torque_limits: available torque (1 - mf) * tau_limit of every half at the end of each
+            cycle (N m, signed like the half), (cycles, halves).
+        joint_names, actuator_names, cost_terms: labels of the columns.
+        cycle_wall_time_s: solve time attributed to each cycle (s), (cycles,).
+        windows: sliding-horizon window table (structured, :data:`WINDOW_DTYPE`), or None.
+        urdf: the model's URDF text (so the file reproduces itself), or "".
+        study: the TOML text of the study that produced the run, or "" (built in Python).
+        fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
+    """
+
+    name: str
+    attrs: dict[str, Any]
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    tau_plus: np.ndarray
+    tau_minus: np.ndarray
+    fatigue: dict[str, np.ndarray]
+    cycle_costs: np.ndarray
+    torque_limits: np.ndarray
+    joint_names: tuple[str, ...]
+    actuator_names: tuple[str, ...]
+    cost_terms: tuple[str, ...]
+    cycle_wall_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    windows: np.ndarray | None = None
+    urdf: str = ""
+    study: str = ""
+    fatigued: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.fatigued is None:
+            raise ResultFileError(f"run {self.name!r}: the fatigued fraction of every half (fatigued, (nodes, halves)) "
+                                  "is required; the reader supplies it for files that predate it")
+
+    @property
+    def signed_limits(self) -> np.ndarray:
+        """Signed torque limit of every half (N m), (halves,): + for plus halves, - for minus
+        halves, as stored in the run attribute ``tau_limits``."""
+        lim = self.attrs.get("tau_limits")
+        if lim is None or np.size(lim) != len(self.actuator_names):
+            raise ResultFileError(f"run {self.name!r} has no torque limits of its {len(self.actuator_names)} halves "
+                                  "(attribute tau_limits); expected a run written by fatigue_pin")
+        return np.asarray(lim, dtype=float).reshape(-1)
+
+    def target_loads(self) -> np.ndarray:
+        """Target load TL = tau / tau_limit of every half on every interval (dimensionless, >= 0),
+        (intervals, halves), halves ordered as :attr:`actuator_names` (plus, minus of each joint)."""
+        tau = np.empty((self.tau_plus.shape[0], 2 * self.tau_plus.shape[1]))
+        tau[:, 0::2], tau[:, 1::2] = self.tau_plus, self.tau_minus
+        return tau / self.signed_limits[None, :]
+
+    @property
+    def fatigue_states(self) -> tuple[str, ...]:
+        return tuple(self.fatigue)
+
+    def state(self, name: str) -> np.ndarray:
+        """Fatigue state ``name`` of every half, (nodes, halves)."""
+        if name not in self.fatigue:
+            raise ResultFileError(f"run {self.name!r} has no fatigue state {name!r}; its states are {list(self.fatigue)}")
+        return self.fatigue[name]
+
+    @property
+    def ma(self) -> np.ndarray:
+        return self.state("ma")
+
+    @property
+    def mr(self) -> np.ndarray:
+        return self.state("mr")
+
+    @property
+    def mf(self) -> np.ndarray:
+        return self.state("mf")
+
+    @property
+    def n_cycles(self) -> int:
+        return int(self.cycle_costs.shape[0])
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.attrs.get("converged", False))
+
+    @property
+    def intervals_per_cycle(self) -> int:
+        return (self.t.size - 1) // max(self.n_cycles, 1)
+
+    def invariant_error(self) -> np.ndarray:
+        """|1 - (sum of the fatigue states)| of every half at every node, (nodes, halves) (for
+        Xia's model |1 - (ma + mr + mf)|; states a half lacks count as 0)."""
+        total = sum(np.nan_to_num(v) for v in self.fatigue.values())
+        return np.abs(1.0 - total)
+
+    def cycle_slice(self, cycle: int) -> slice:
+        """Node slice of cycle ``cycle`` (0-based), both ends included."""
+        n = self.intervals_per_cycle
+        if not 0 <= cycle < self.n_cycles:
+            raise ResultFileError(f"cycle {cycle} is out of range: run {self.name!r} has cycles 0..{self.n_cycles - 1}")
+        return slice(cycle * n, (cycle + 1) * n + 1)
+
+
+def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, intervals_per_cycle: int) -> np.ndarray:
+    """(1 - mf) * limit at nodes n, 2n, ..., shape (cycles, halves); ``signed_limits`` (halves,)."""
+    ends = np.arange(intervals_per_cycle, mf.shape[0], intervals_per_cycle)
+    return (1.0 - mf[ends]) * np.asarray(signed_limits)[None, :]
+
+
+#: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
+#: ``sliding/torque_S0_failed_window``.
+FAILED_WINDOW_SUFFIX = "_failed_window"
+
+
+class RunStore(Protocol):
+    """Where a driver keeps its runs and search tables as it goes (e.g. an HDF5 file,
+    :class:`fatigue_pin.io.results.ResultFile`). ``write`` replaces a run of the same name
+    atomically: after a crash the store holds the old run or the new one, whole."""
+
+    def runs(self) -> list[str]:
+        """Names of the stored runs, failed windows included."""
+        ...
+
+    def read(self, name: str) -> RunResult:
+        """The stored run ``name``."""
+        ...
+
+    def write(self, run: RunResult) -> None:
+        """Add or replace run ``run.name``."""
+        ...
+
+    def tables(self) -> dict[str, np.ndarray]:
+        """Every stored search table (:data:`SEARCH_DTYPE`), by name."""
+        ...
+
+    def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
+        """Add or replace search table ``name``: one row per solve (:data:`SEARCH_DTYPE` fields)."""
+        ...
+
+
+def failed_window_name(name: str) -> str:
+    """Run name of the failed window of the sliding run ``name`` (its last IPOPT iterate)."""
+    return f"{name}{FAILED_WINDOW_SUFFIX}"
+
+
+def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None) -> dict[str, object]:
+    """Attributes describing a run of ``ocp``: horizon, sizes, weights and fatigue parameters by
+    name (JSON), solver, model, and the study's ``labels`` (e.g. cost, S, preset)."""
+    s = ocp.solver_options
+    per_half = {h.name: {"model": h.params.kind, **h.params.as_dict()} for h in ocp.actuators.halves}
+    attrs: dict[str, object] = {
+        "horizon": horizon,
+        "n_cycles": ocp.n_cycles,
+        "solver": f"ipopt/{s.linear_solver}" + ("/compiled" if s.compile else ""),
+        "model": ocp.model.name,
+        "weights": json.dumps(dict(zip(ocp.cost_terms, ocp.problem.weights.tolist()))),
+        "fatigue_params": json.dumps(per_half),
+        "tau_limits": ocp.actuators.signed_limits,
+        "intervals_per_cycle": ocp.task.intervals_per_cycle,
+        "dt": ocp.task.dt,
+        "substeps": ocp.transcription.substeps,
+    }
+    # parameters shared by every half (e.g. S of a study with one fatigue model), by name
+    halves = ocp.actuators.halves
+    for key in halves[0].params.param_names:
+        values = {getattr(h.params, key, None) for h in halves}
+        if len(values) == 1 and None not in values:
+            attrs[key] = float(values.pop())
+    attrs.update(labels or {})
+    return attrs
+
+
+def to_run_result(
+    ocp: Ocp,
+    t: np.ndarray,
+    x: np.ndarray,
+    u: np.ndarray,
+    cycle_costs: np.ndarray,
+    name: str,
+    attrs: dict[str, object],
+    cycle_wall_time_s: np.ndarray,
+    windows: np.ndarray | None = None,
+    study: str = "",
+) -> RunResult:
+    """Assemble a :class:`RunResult` from node states (nodes, nx) and controls (intervals, nu)."""
+    L = ocp.layout
+    fatigued = L.fatigued(x)
+    return RunResult(
+        name=name,
+        attrs=attrs,
+        t=t,
+        q=x[:, L.q],
+        qdot=x[:, L.v],
+        tau_plus=u[:, : L.nv],
+        tau_minus=u[:, L.nv :],
+        fatigue={s: L.fatigue_columns(x, s) for s in L.state_kinds},
+        cycle_costs=cycle_costs,
+        torque_limits=torque_limits_at_cycle_ends(fatigued, ocp.actuators.signed_limits, ocp.task.intervals_per_cycle),
+        joint_names=ocp.model.joint_names,
+        actuator_names=ocp.actuators.half_names,
+        cost_terms=ocp.cost_terms,
+        cycle_wall_time_s=cycle_wall_time_s,
+        windows=windows,
+        urdf=Path(ocp.model.urdf_path).read_text(),
+        study=study,
+        fatigued=fatigued,
+    )
+
+
+def solution_to_run(ocp: Ocp, sol: OcpSolution, name: str, study: str = "", labels: dict[str, Any] | None = None) -> RunResult:
+    """The :class:`RunResult` of a full-horizon solution."""
+    attrs = run_attributes(ocp, "full", labels)
+    attrs.update(
+        converged=sol.success,
+        status=sol.status,
+        wall_time_s=sol.wall_time_s,
+        build_time_s=ocp.build_time_s,
+        compile_time_s=ocp.compile_time_s,
+        iterations=sol.iterations,
+        objective=sol.objective,
+    )
+    per_cycle = np.full(ocp.n_cycles, sol.wall_time_s / ocp.n_cycles)
+    return to_run_result(ocp, sol.t, sol.x, sol.u, sol.cycle_costs, name, attrs, per_cycle, study=study)
