@@ -13,13 +13,14 @@ HDF5 one), so the drivers do not depend on the file format.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from fatigue_pin.core.errors import ResultFileError
+from fatigue_pin.core.errors import ParameterError, ResultFileError
 
 if TYPE_CHECKING:
     from fatigue_pin.ocp.transcription import Ocp, OcpSolution
@@ -162,6 +163,40 @@ def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, inter
 #: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
 #: ``sliding/torque_S0_failed_window``.
 FAILED_WINDOW_SUFFIX = "_failed_window"
+
+
+#: Groups of a result file that hold no user run: search tables and the searches' step runs.
+RESERVED_GROUPS = ("search", "searched")
+#: The grammar of run names, as said in messages and docs/results.md.
+RUN_NAME_GRAMMAR = ("segments of letters, digits and _ - . + = , separated by '/' (none empty, none starting with "
+                    "'.'), at most 200 characters, not under search/ or searched/, not ending with _failed_window")
+_SEGMENT = re.compile(r"[A-Za-z0-9_+=,-][A-Za-z0-9_.+=,-]*")
+
+
+def check_run_name(name: object, internal: bool = False) -> str:
+    """``name`` once it follows :data:`RUN_NAME_GRAMMAR` (checked before any work).
+
+    A run name is a path of groups in a result file: ``full/torque_S10``. Empty segments
+    (``a//b``, a leading or trailing ``/``), ``.`` and ``..``, characters HDF5 or a shell treat
+    specially, and the groups the file keeps for itself (:data:`RESERVED_GROUPS`, the
+    ``_failed_window`` runs) would let a run land on something else and delete it.
+
+    Args:
+        internal: allow the names the drivers make themselves (``searched/<table>/N<n>``,
+            ``<run>_failed_window``).
+
+    Raises:
+        ParameterError: naming the name and the grammar.
+    """
+    bad = ParameterError(f"run name {name!r}: expected {RUN_NAME_GRAMMAR}")
+    if not isinstance(name, str) or not name or len(name) > 200:
+        raise bad
+    segments = name.split("/")
+    if not all(_SEGMENT.fullmatch(s) for s in segments):
+        raise bad
+    if segments[0] == "search" or not internal and (segments[0] in RESERVED_GROUPS or name.endswith(FAILED_WINDOW_SUFFIX)):
+        raise bad
+    return name
 
 
 class RunStore(Protocol):

@@ -53,15 +53,17 @@ from fatigue_pin.core.files import check_folder, check_output_dir, check_space, 
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
     RUN_ATTRIBUTES,
+    RUN_NAME_GRAMMAR,
     SEARCH_DTYPE,
     WINDOW_DTYPE,
     RunResult,
+    check_run_name,
     torque_limits_at_cycle_ends,
 )
 
 __all__ = [
     "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
-    "check_output", "check_output_dir", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
+    "check_output", "check_output_dir", "check_run_slot", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
     "write_run", "write_search",
 ]
 
@@ -269,16 +271,62 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
         raise _io_error(path, exc) from exc
 
 
+def _is_run(obj: Any) -> bool:
+    return isinstance(obj, h5py.Group) and "t" in obj and "q" in obj
+
+
+def _check_slot(h5: h5py.File, name: str, path: Path) -> bool:
+    """Whether ``name`` can take a run in the open file ``h5`` (True: it holds a run, which the
+    new one replaces). A run never lands on anything but a run of the same name: not on the
+    group of other runs, a search table or any other object, and not inside another run.
+
+    Raises:
+        ResultFileError: naming what is there.
+    """
+    segments = name.split("/")
+    for k in range(1, len(segments)):
+        parent = "/".join(segments[:k])
+        if parent in h5 and (not isinstance(h5[parent], h5py.Group) or _is_run(h5[parent])):
+            raise ResultFileError(f"run name {name!r} lies inside {'run' if _is_run(h5[parent]) else 'dataset'} {parent!r} of "
+                                  f"{str(path)!r}; expected a name that is not inside another run")
+    if name not in h5:
+        return False
+    obj = h5[name]
+    if _is_run(obj):
+        return True
+    inside = sorted(f"{name}/{k}" for k, v in obj.items() if isinstance(v, h5py.Group)) if isinstance(obj, h5py.Group) else []
+    what = f"the group of {inside}" if inside else ("a dataset" if isinstance(obj, h5py.Dataset) else "a group that is no run")
+    raise ResultFileError(f"run name {name!r} is {what} in {str(path)!r}; a run replaces only a run of the same name: "
+                          "expected a new name or the name of a run")
+
+
+def check_run_slot(path: str | Path, name: str, internal: bool = False) -> str:
+    """Check, before any work, that run ``name`` follows the grammar
+    (:func:`~fatigue_pin.drivers.run.check_run_name`) and can be written to ``path`` without
+    replacing anything but a run of the same name (a missing file: any valid name)."""
+    check_run_name(name, internal)
+    path = Path(path)
+    if path.exists():
+        with _open(path) as h5:
+            _check_slot(h5, name, path)
+    return name
+
+
 def write_run(path: str | Path, run: RunResult) -> Path:
-    """Add or replace run ``run.name`` in the HDF5 file ``path`` (atomic, crash-safe)."""
+    """Add run ``run.name`` to the HDF5 file ``path``, or replace the run of that name (atomic,
+    crash-safe); a name that collides with anything else in the file is refused (:func:`check_run_slot`)."""
+    path = Path(path)
+    check_run_name(run.name, internal=True)
 
     def fill(h5: h5py.File) -> None:
+        if _check_slot(h5, run.name, path):  # on the copy: the file is unchanged if this raises
+            del h5[run.name]
         _write_run(h5.create_group(run.name), run)
 
     arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values()]
     size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
-    _atomic_rewrite(Path(path), {run.name}, fill, new_bytes=size)
-    return Path(path)
+    _atomic_rewrite(path, set(), fill, new_bytes=size)
+    return path
 
 
 def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any] | None = None) -> None:
@@ -291,7 +339,14 @@ def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs:
                        str(r.get("kind", "")).encode()[:24], str(r.get("guess", "")).encode()[:24],
                        float(r.get("constraint_violation", np.nan))) for r in rows], dtype=SEARCH_DTYPE)
 
+    check_run_name(name, internal=True)
+    if "/" in name:
+        raise ResultFileError(f"search table name {name!r}: expected one segment ({RUN_NAME_GRAMMAR})")
+
     def fill(h5: h5py.File) -> None:
+        if "search" in h5 and not isinstance(h5["search"], h5py.Group) or "search" in h5 and _is_run(h5["search"]):
+            raise ResultFileError(f"'search' in {str(path)!r} is not the group of search tables; expected a result file "
+                                  "written by fatigue_pin")
         grp = h5.require_group("search")
         if name in grp:
             del grp[name]

@@ -691,9 +691,13 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
         from fatigue_pin.io.results import check_output
 
         check_output(out)
+    name = study.run_name() if name is None else name
+    from fatigue_pin.io.results import check_run_slot
+    from fatigue_pin.drivers.run import check_run_name
+
+    check_run_slot(out, name) if out is not None else check_run_name(name)  # nothing but a run of that name in its place
     problem = study.problem()
     tr, sol_opts, h = study.transcription(), study.solver(cache_dir), study.horizon
-    name = name or study.run_name()
     text = study.to_toml()
     end = h["end_tolerance"] if h["cyclic_end"] else None  # the full horizons' end box
     if h["kind"] == "full":

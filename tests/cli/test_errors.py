@@ -369,6 +369,15 @@ CASES: list[Case] = [
          lambda e: ["replay", str(e.existing), "--html", e.path("r.html")]),
     Case("rerun-without-study", FILES, "`rerun` a run built in Python (no stored study)", r"holds no run with a stored study",
          lambda e: ["rerun", str(e.existing), "--out", str(e.existing)]),
+    # -- run names ---------------------------------------------------------------------------------
+    Case("run-name-parent-group", FILES, "`run --name full` where the file holds full/a and full/b",
+         r"run name 'full' is the group of \['full/a', 'full/b'\] in '.*existing.h5'; a run replaces only a run of the same name",
+         lambda e: ["run", e.study(), "--name", "full", "--out", str(e.existing)]),
+    Case("run-name-inside-run", FILES, "`run --name full/a/x` (inside run full/a)", r"run name 'full/a/x' lies inside run 'full/a'",
+         lambda e: ["run", e.study(), "--name", "full/a/x", "--out", str(e.existing)]),
+    Case("run-name-grammar", FILES, "`run --name a//b` (an empty segment; also `.`, `/`, `search/...`)",
+         r"run name 'a//b': expected segments of letters, digits and _ - . \+ = , separated by '/'",
+         lambda e: ["run", e.study(), "--name", "a//b", "--out", str(e.existing)]),
     # -- fatigue data: presets, endurance CSVs, endurance tasks ------------------------------------
     Case("preset-json-shape", FATIGUE, "a preset JSON whose `model` is a list", r"model = \['3cc'\]: expected one of",
          lambda e: ["endurance", "--preset", e.write("p.json", '{"model": ["3cc"], "F": 0.01, "R": 0.001, "LD": 10, "LR": 10}'),
