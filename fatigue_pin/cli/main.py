@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from fatigue_pin.core.errors import FatiguePinError
+from fatigue_pin.core.signals import Interrupted, watch
 
 
 class UsageError(FatiguePinError, ValueError):
@@ -364,7 +365,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args([a for a in argv if a != "--debug"])
         args.debug = debug
-        return int(args.func(args) or 0)
+        with watch():  # SIGINT and SIGTERM: Interrupted, exit code 130 and 143
+            return int(args.func(args) or 0)
     except (FatiguePinError, OSError) as exc:  # OSError: a file problem no check foresaw
         if debug:
             raise
@@ -372,9 +374,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{exc.strerror}: {exc.filename!r}" if exc.filename else exc.strerror
         print("fatigue-pin: error: " + " ".join(text.split()), file=sys.stderr)  # one line
         return 2
-    except KeyboardInterrupt:
-        print("fatigue-pin: interrupted; finished work is in the output file", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Interrupted (SIGINT, SIGTERM), or Ctrl-C outside a watch
+        code = exc.exit_code if isinstance(exc, Interrupted) else 130
+        what = exc.args[0] if isinstance(exc, Interrupted) else "interrupted"
+        print(f"fatigue-pin: {what}; finished work (windows, searched N) is in the output file, the interrupted "
+              "solve is not (--resume continues)", file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ParameterError, ResultFileError
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.core.signals import Interrupted, signal_name
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, run_attributes, to_run_result
 from fatigue_pin.ocp.guesses import shifted_window_guess
@@ -173,7 +174,9 @@ class SlidingHorizon:
         t = first_cycle * ocp.task.cycle_duration + np.arange(sol.x.shape[0]) * ocp.task.dt
         return to_run_result(ocp, t, sol.x, sol.u, sol.cycle_costs, name, attrs, np.zeros(self.sliding.window), study=self.study)
 
-    def _run_result(self, state: _State, name: str, build_time: float) -> RunResult:
+    def _run_result(self, state: _State, name: str, build_time: float, interrupted: str = "") -> RunResult:
+        """The run of ``state``; ``interrupted`` (a signal's name): stored as interrupted, neither
+        finished nor converged."""
         ocp = self.ocp
         attrs = run_attributes(ocp, "sliding", self.labels)
         attrs["fingerprint"] = self.fingerprint()
@@ -194,6 +197,8 @@ class SlidingHorizon:
             iterations=int(table["iterations"].sum()) if table.size else 0,
             converged_windows=converged,
         )
+        if interrupted:
+            attrs.update(interrupted=interrupted, finished=False, converged=False)
         t = np.arange(state.x.shape[0]) * ocp.task.dt
         return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table, study=self.study)
 
@@ -283,7 +288,12 @@ class SlidingHorizon:
         while (state is None or not state.done) and (stop_after is None or solved < stop_after):
             x_init, guess, first_cycle = self._next_window(state)
             limit = self._iteration_limit(state) if state is not None else None
-            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit)
+            try:
+                sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit)
+            except Interrupted as exc:  # the windows done so far stay, marked interrupted; --resume continues
+                if store is not None and state is not None:
+                    store.write(self._run_result(state, name, ocp.build_time_s, interrupted=signal_name(exc)))
+                raise
             solved += 1
             index = len(state.windows) if state is not None else 0
             row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)

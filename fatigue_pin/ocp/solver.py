@@ -20,6 +20,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -31,6 +32,8 @@ import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.core.signals import watch
+from fatigue_pin.core.streams import captured
 from fatigue_pin.ocp.compiled import cached_build, compile_shared, verify_entry
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
@@ -466,7 +469,10 @@ class NlpSolver:
             args["lam_g0"] = lam_g0
         t0 = time.perf_counter()
         solver = self._solver(max_iter)
-        sol = solver(**args)
+        with captured(2) as said, watch():  # Ctrl-C / SIGTERM: IPOPT stops, Interrupted is raised (no failed solve)
+            sol = solver(**args)
+        if said:  # what CasADi and IPOPT wrote on standard error, once the solve was not interrupted
+            print("\n".join(said), file=sys.stderr)
         wall = time.perf_counter() - t0
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
