@@ -49,7 +49,7 @@ import h5py
 import numpy as np
 
 from fatigue_pin.core.errors import ResultFileError
-from fatigue_pin.core.files import check_folder, check_output_dir, check_space, clone, fsync, locked
+from fatigue_pin.core.files import check_folder, check_output_dir, check_space, clone, fsync, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
     RUN_ATTRIBUTES,
@@ -245,7 +245,7 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
         ResultFileError: the existing file cannot be read (damaged, not HDF5, newer layout), or
             the write fails (full disk, permissions), naming the path.
     """
-    path = Path(path)
+    path = through_links(path)  # a symbolic link is written through: the link stays, its target changes
     tmp = path.with_name(path.name + ".tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -368,7 +368,7 @@ def check_output(path: str | Path) -> Path:
     Raises:
         ResultFileError: naming the path and what is wrong.
     """
-    path = Path(path)
+    path = through_links(path)  # a symbolic link: its target is what is written
     if path.is_dir():
         raise ResultFileError(f"output {str(path)!r} is a folder; expected the path of an HDF5 result file")
     size = 0
