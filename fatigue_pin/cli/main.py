@@ -113,7 +113,7 @@ def _cmd_max_cycles(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from fatigue_pin.io.study import Study, parse_changes
 
-    study = Study.from_file(args.study)
+    study = Study.from_file(args.study, args.run)
     if args.set:
         study = study.replace(parse_changes(args.set))
     return _run(study, args)
@@ -263,6 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="change a key of the study, e.g. --set fatigue.S=0 --set horizon.max_cycles=5 (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run (sliding) or search (max-cycles) stored in --out")
+    p.add_argument("--run", default=None, metavar="NAME", help="with an HDF5 result file as study: the run whose study to use")
     _add_output_arguments(p)
     p.set_defaults(func=_cmd_run)
 

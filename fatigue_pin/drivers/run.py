@@ -89,6 +89,50 @@ class RunResult:
             raise ResultFileError(f"run {self.name!r}: the fatigued fraction of every half (fatigued, (nodes, halves)) "
                                   "is required; the reader supplies it for files that predate it")
 
+    def check_shapes(self) -> None:
+        """Refuse a run whose arrays disagree (a damaged or hand-edited file): every array 2-D
+        where a table is expected, nodes = intervals + 1 = cycles * intervals_per_cycle + 1,
+        and as many columns as labels. Raises ResultFileError naming the arrays."""
+        def bad(what: str) -> ResultFileError:
+            return ResultFileError(f"run {self.name!r}: {what}; expected the arrays of one run (docs/results.md), "
+                                   "the file is damaged or was edited")
+
+        arrays = {"q": self.q, "qdot": self.qdot, "tau_plus": self.tau_plus, "tau_minus": self.tau_minus,
+                  "cycle_costs": self.cycle_costs, "torque_limits": self.torque_limits, "fatigued": self.fatigued,
+                  **self.fatigue}
+        if np.ndim(self.t) != 1:
+            raise bad(f"t has shape {np.shape(self.t)}")
+        for key, a in arrays.items():
+            if np.ndim(a) != 2:
+                raise bad(f"{key} has shape {np.shape(a)}, not a table")
+            if not np.issubdtype(np.asarray(a).dtype, np.number):
+                raise bad(f"{key} holds {np.asarray(a).dtype} values, not numbers")
+        nodes, cycles = self.t.shape[0], self.cycle_costs.shape[0]
+        rows = {"q": nodes, "qdot": nodes, "fatigued": nodes, **{k: nodes for k in self.fatigue},
+                "tau_plus": max(nodes - 1, 0), "tau_minus": max(nodes - 1, 0), "torque_limits": cycles}
+        wrong = {k: arrays[k].shape[0] for k, n in rows.items() if arrays[k].shape[0] != n}
+        if wrong:
+            raise bad(f"t has {nodes} nodes and cycle_costs {cycles} cycles, but the rows of {wrong} disagree")
+        if cycles and (nodes - 1) % cycles:
+            raise bad(f"{nodes - 1} intervals do not make {cycles} equal cycles")
+        columns = {"q": len(self.joint_names), "qdot": len(self.joint_names), "tau_plus": len(self.joint_names),
+                   "tau_minus": len(self.joint_names), "cycle_costs": len(self.cost_terms), "fatigued": len(self.actuator_names),
+                   "torque_limits": len(self.actuator_names), **{k: len(self.actuator_names) for k in self.fatigue}}
+        wrong = {k: arrays[k].shape[1] for k, n in columns.items() if arrays[k].shape[1] != n}
+        if wrong:
+            raise bad(f"the columns of {wrong} disagree with the labels ({len(self.joint_names)} joints, "
+                      f"{len(self.actuator_names)} halves, {len(self.cost_terms)} cost terms)")
+
+    def require_cycles(self, what: str) -> None:
+        """Refuse to ``what`` (plot, replay, verify) a run without a cycle: a sliding run whose
+        first window failed keeps no cycle (its last iterate is the ``_failed_window`` run)."""
+        if self.n_cycles == 0 or self.t.size == 0:
+            status = self.attrs.get("status", "")
+            raise ResultFileError(
+                f"run {self.name!r} has no cycle to {what}: no window converged (status {status!s}); expected a run "
+                f"with cycles (IPOPT's last iterate of its failed window is the run {failed_window_name(self.name)!r})"
+            )
+
     @property
     def signed_limits(self) -> np.ndarray:
         """Signed torque limit of every half (N m), (halves,): + for plus halves, - for minus

@@ -114,7 +114,7 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
     attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
     attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in attrs.items()}
-    return RunResult(
+    run = RunResult(
         name=name,
         attrs=attrs,
         t=group["t"][()],
@@ -134,6 +134,8 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         study=_text(group.attrs.get("study", "")),
         fatigued=group["fatigued"][()] if "fatigued" in group else group["mf"][()],  # before "fatigued": Xia's mf
     )
+    run.check_shapes()
+    return run
 
 
 def _text(value: Any) -> str:
@@ -445,8 +447,11 @@ def read_run(path: str | Path, name: str | None = None) -> RunResult:
         runs = _run_names(h5)
         if name is None:
             main = _main_runs(runs)
+            if not main:
+                raise ResultFileError(f"{str(path)!r} holds no run; expected a result file with a run (it may hold "
+                                      f"only search tables or failed windows: {runs})")
             if len(main) != 1:
-                raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name")
+                raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name (--run NAME)")
             name = main[0]
         if name not in runs:
             shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]

@@ -484,6 +484,8 @@ class Study:
             except UnicodeDecodeError:
                 raise StudyError(f"{str(path)!r} is neither a TOML study nor an HDF5 result file") from None
         head = path.read_bytes()[:8]
+        if run is not None and not head.startswith(b"\x89HDF"):
+            raise StudyError(f"run {run!r}: {str(path)!r} is a study file, not an HDF5 result file; a run is named only in a result file")
         if head.startswith(b"\x89HDF"):
             from fatigue_pin.io.results import read_run
 

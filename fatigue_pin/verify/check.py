@@ -471,6 +471,7 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
 
     tol = tolerances or VerifyTolerances()
     notes: list[str] = []
+    run.require_cycles("verify")
     N = run.tau_plus.shape[0]
     if run.q.shape[0] != N + 1 or run.t.size != N + 1:
         raise ResultFileError(f"run {run.name!r}: {run.q.shape[0]} nodes for {N} intervals; expected {N + 1}")

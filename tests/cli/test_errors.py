@@ -76,6 +76,32 @@ class Env:
         self.write("base.toml", to_toml(BASE))
         return self.write("sweep.toml", 'base = "base.toml"\n[grid]\n"fatigue.S" = [0.0, 10.0]\n')
 
+    def empty_result(self) -> str:
+        import h5py
+
+        p = self.tmp / "empty.h5"
+        with h5py.File(p, "w") as h5:
+            h5.attrs["format"] = "fatigue_pin.results/2"
+        return str(p)
+
+    def result_without_cycles(self) -> str:
+        p = self.tmp / "failed.h5"
+        write_run(p, make_run("sliding/x", cycles=0))
+        return str(p)
+
+    def result_cut_q(self) -> str:
+        import h5py
+
+        p = self.tmp / "cut_q.h5"
+        write_run(p, make_run("full/a"))
+        with h5py.File(p, "a") as h5:
+            q = h5["full/a/q"][()]
+            joints = h5["full/a/q"].attrs["joints"]
+            del h5["full/a/q"]
+            h5["full/a"].create_dataset("q", data=q[:-1]).attrs["joints"] = joints
+        self.watched.append(p)
+        return str(p)
+
     def result(self, name: str, layout: int | None = None, truncate: bool = False) -> str:
         import h5py
 
@@ -367,6 +393,17 @@ CASES: list[Case] = [
          lambda e: ["replay", str(e.existing), "--run", "nope", "--html", e.path("r.html")]),
     Case("file-several-runs", FILES, "`replay` a file of several runs without `--run`", r"holds 2 runs \['full/a', 'full/b'\]; choose one",
          lambda e: ["replay", str(e.existing), "--html", e.path("r.html")]),
+    Case("file-empty", FILES, "`replay` a result file that holds no run", r"'.*empty.h5' holds no run; expected a result file with a run",
+         lambda e: ["replay", e.empty_result(), "--html", e.path("r.html")]),
+    Case("run-file-several-runs", FILES, "`run FILE.h5` of a file of several runs, without `--run`",
+         r"holds 2 runs \['full/a', 'full/b'\]; choose one by name \(--run NAME\)",
+         lambda e: ["run", str(e.existing), "--out", e.path("new.h5")]),
+    Case("run-without-cycles", FILES, "`plot` a sliding run whose first window failed (no cycle)",
+         r"run 'sliding/x' has no cycle to plot: no window converged .*'sliding/x_failed_window'",
+         lambda e: ["plot", e.result_without_cycles(), "--out", e.path("figures")]),
+    Case("datasets-disagree", FILES, "`replay` a run whose datasets disagree in length (q has a row too few)",
+         r"run 'full/a': t has 21 nodes and cycle_costs 2 cycles, but the rows of \{'q': 20\} disagree",
+         lambda e: ["replay", e.result_cut_q(), "--run", "full/a", "--html", e.path("r.html")]),
     Case("rerun-without-study", FILES, "`rerun` a run built in Python (no stored study)", r"holds no run with a stored study",
          lambda e: ["rerun", str(e.existing), "--out", str(e.existing)]),
     # -- run names ---------------------------------------------------------------------------------

@@ -175,3 +175,26 @@ def test_a_study_read_from_a_pipe(tmp_path):
             with pytest.raises(StudyError, match=expected):
                 Study.from_file(fifo)
         writer.join(5)
+
+
+def test_run_names_the_run_of_a_result_file_whose_study_to_use(tmp_path, capsys):
+    """``fatigue-pin run FILE.h5 --run NAME``: a file of several runs needs the name (before, it
+    had no way to name one); ``--run`` with a TOML study is refused."""
+    import dataclasses
+
+    from conftest import make_run
+    from fatigue_pin.io.results import write_run
+
+    path = tmp_path / "runs.h5"
+    for name, S in (("full/a", 0.0), ("full/b", 10.0)):
+        write_run(path, dataclasses.replace(make_run(name), study=small_curl("full", S=S).to_toml()))
+    assert Study.from_file(path, "full/a").data["fatigue"]["S"] == 0.0
+    assert Study.from_file(path, "full/b").data["fatigue"]["S"] == 10.0
+    assert main(["run", str(path), "--out", str(tmp_path / "new.h5")]) == 2
+    assert "choose one by name (--run NAME)" in capsys.readouterr().err
+    assert main(["run", str(path), "--run", "full/c", "--out", str(tmp_path / "new.h5")]) == 2
+    assert "run 'full/c' is not in" in capsys.readouterr().err
+    toml = tmp_path / "s.toml"
+    toml.write_text(small_curl("full").to_toml())
+    with pytest.raises(StudyError, match="is a study file, not an HDF5 result file"):
+        Study.from_file(toml, "full/a")
