@@ -48,7 +48,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fatigue_pin.core.errors import ResultFileError
+from fatigue_pin.core.errors import FatiguePinError, ResultFileError
 from fatigue_pin.core.files import check_folder, check_output_dir, check_space, clone, fsync, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
@@ -429,14 +429,25 @@ def _main_runs(names: list[str]) -> list[str]:
     return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
 
 
+@contextlib.contextmanager
+def _reading(what: str):
+    """Any failure of h5py or numpy while reading ``what`` of an open file (a damaged file can
+    raise RuntimeError, KeyError, IndexError, TypeError, UnicodeDecodeError, ...) becomes one
+    ResultFileError naming it; the project's own errors pass as they are."""
+    try:
+        yield
+    except FatiguePinError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever a damaged file makes h5py raise
+        reason = str(exc).splitlines()[0] if str(exc) else ""
+        raise ResultFileError(f"{what} cannot be read ({type(exc).__name__}: {reason}); the file is damaged") from None
+
+
 def list_runs(path: str | Path, failed_windows: bool = False) -> list[str]:
     """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted; the
     failed windows of sliding runs (``*_failed_window``) only with ``failed_windows=True``."""
-    with _open(path) as h5:
-        try:
-            names = _run_names(h5)
-        except (OSError, RuntimeError) as exc:
-            raise ResultFileError(f"{str(path)!r} is damaged: its groups cannot be listed ({exc})") from None
+    with _open(path) as h5, _reading(f"the groups of {str(path)!r}"):
+        names = _run_names(h5)
     return names if failed_windows else _main_runs(names)
 
 
@@ -444,7 +455,8 @@ def read_run(path: str | Path, name: str | None = None) -> RunResult:
     """Read one run; ``name`` may be omitted when the file holds exactly one run (a sliding
     run's failed window, ``*_failed_window``, does not count)."""
     with _open(path) as h5:
-        runs = _run_names(h5)
+        with _reading(f"the groups of {str(path)!r}"):
+            runs = _run_names(h5)
         if name is None:
             main = _main_runs(runs)
             if not main:
@@ -456,24 +468,16 @@ def read_run(path: str | Path, name: str | None = None) -> RunResult:
         if name not in runs:
             shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]
             raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {shown}")
-        try:
+        with _reading(f"run {name!r} in {str(path)!r}"):
             return _read_run(h5[name], name)
-        except ResultFileError:
-            raise
-        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
-            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ResultFileError(f"run {name!r} in {str(path)!r} cannot be read ({reason}); the file is damaged") from None
 
 
 def read_search(path: str | Path) -> dict[str, np.ndarray]:
     """All max-cycles search tables of a file, by name."""
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(f"the search tables of {str(path)!r}"):
         if "search" not in h5:
             return {}
-        try:
-            return {k: h5["search"][k][()] for k in h5["search"]}
-        except (OSError, RuntimeError, KeyError, ValueError) as exc:
-            raise ResultFileError(f"the search tables of {str(path)!r} cannot be read ({exc}); the file is damaged") from None
+        return {k: h5["search"][k][()] for k in h5["search"]}
 
 
 def config_json(obj: Any) -> str:
