@@ -210,7 +210,7 @@ def max_repetitions(
     infeasibility (IPOPT's certificate, a failed restoration, a growing constraint violation) is
     told from non-convergence (iteration or time limit) and from a broken step computation.
     """
-    if n_max is not None:
+    if n_max is not None and problem is not None:  # (tests stand in a fake builder for the problem)
         check_horizon(problem.task, n_max, "n_max")
     rep = as_reporter(progress)
     search = _Search(OcpBuilder(problem, transcription, solver, guess, rep), guess, retry, end_tolerance, store, name, study,
