@@ -40,6 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CHILD = textwrap.dedent(
     """
     import os, sys, time
+    import fatigue_pin.core.files as FS
     import fatigue_pin.io.results as R
     from fatigue_pin.paper.curl import curl_study
     from fatigue_pin.io.study import run_study
@@ -54,7 +55,7 @@ CHILD = textwrap.dedent(
         say("IO " + tag)
         time.sleep(PAUSE)
 
-    real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, R.fsync, os.replace, R._write_run
+    real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, FS.fsync, os.replace, R._write_run
 
     def clone(src, dst):
         announce("copy")
@@ -78,7 +79,7 @@ CHILD = textwrap.dedent(
         announce("rename")
         real_replace(a, b)
 
-    R.clone, R._compact, R._write_run, R.fsync, os.replace = clone, compact, group, fsync, replace
+    R.clone, R._compact, R._write_run, FS.fsync, os.replace = clone, compact, group, fsync, replace
 
     def wrote(module, name, tag, counts=lambda *args: True):
         real = getattr(module, name)

@@ -28,7 +28,7 @@ from fatigue_pin.paper.curl import COSTS, curl_study
 from fatigue_pin.io.results import list_runs, read_run
 from fatigue_pin.drivers.run import failed_window_name
 from fatigue_pin.io.study import run_study
-from fatigue_pin.verify.check import verify_run
+from fatigue_pin.verify import verify_run
 
 
 def invariant(run) -> np.ndarray:

@@ -75,8 +75,9 @@ _API: dict[str, str] = {
     "write_run": "fatigue_pin.io.results",
     "list_runs": "fatigue_pin.io.results",
     # checks, sweeps, views
-    "verify_run": "fatigue_pin.verify.check",
-    "VerifyTolerances": "fatigue_pin.verify.check",
+    "verify_run": "fatigue_pin.verify.verifier",
+    "VerifyTolerances": "fatigue_pin.verify.report",
+    "VerifyReport": "fatigue_pin.verify.report",
     "Sweep": "fatigue_pin.sweep.plan",
     "run_sweep": "fatigue_pin.sweep.runner",
     "plot_run": "fatigue_pin.viz.plots",

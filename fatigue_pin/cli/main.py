@@ -201,8 +201,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from fatigue_pin.io.results import ResultFileError, list_runs, read_run
-    from fatigue_pin.verify.check import VerifyTolerances, verify_run
+    from fatigue_pin.verify import ReferenceIntegration, VerifyTolerances, verify_run
 
+    ReferenceIntegration(args.rtol, args.atol, args.method)  # refuse bad tolerances before reading anything
     tol = VerifyTolerances(gap=args.gap_tol, gap_fatigue=args.gap_fatigue_tol, task=args.task_tol, coupling=args.coupling_tol,
                            bound=args.bound_tol)
     if args.all and args.run is not None:
@@ -333,7 +334,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--retries", type=int, default=2, help="Dask retries of a job that raised a file system error (default 2)")
     p.set_defaults(func=_cmd_sweep)
 
-    from fatigue_pin.verify.check import DEFAULT_ATOL, DEFAULT_RTOL, VerifyTolerances
+    from fatigue_pin.verify.report import DEFAULT_ATOL, DEFAULT_RTOL, METHODS, VerifyTolerances
 
     tol = VerifyTolerances()
     p = sub.add_parser("verify", help="check a stored run independently (solve_ivp + pinocchio.aba): gaps, task, coupling, bounds, "
@@ -344,7 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--single-shooting", action="store_true", help="also integrate the stored controls over the whole horizon")
     p.add_argument("--rtol", type=float, default=DEFAULT_RTOL, help=f"solve_ivp rtol (default {DEFAULT_RTOL:g})")
     p.add_argument("--atol", type=float, default=DEFAULT_ATOL, help=f"solve_ivp atol (default {DEFAULT_ATOL:g})")
-    p.add_argument("--method", default="DOP853", choices=["DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA"],
+    p.add_argument("--method", default="DOP853", choices=list(METHODS),
                    help="solve_ivp method (default DOP853; the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
     p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
     p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")

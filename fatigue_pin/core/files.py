@@ -73,15 +73,18 @@ def through_links(path: str | Path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
-def atomic_write(path: Path, write: Callable[[Path], None]) -> Path:
+def atomic_write(path: Path, write: Callable[[Path], None], tmp: Path | None = None) -> Path:
     """Make ``path`` the file that ``write(tmp)`` writes at a temporary path beside it: the
     temporary file is fsynced and renamed over ``path`` (``os.replace``), then the folder is
-    fsynced. On any error the temporary file is removed and ``path`` is unchanged. A symbolic
-    link is written through (:func:`through_links`): the link stays, its target changes."""
+    fsynced. On any error the temporary file is removed and ``path`` is unchanged. ``tmp``: the
+    temporary path (default: a new unique name beside ``path``; a writer that holds the file's
+    lock may name it). A symbolic link is written through (:func:`through_links`): the link
+    stays, its target changes."""
     path = through_links(path)
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp = Path(name)
+    if tmp is None:
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+        os.close(fd)
+        tmp = Path(name)
     try:
         write(tmp)
         fsync(tmp)

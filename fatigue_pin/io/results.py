@@ -49,7 +49,7 @@ import h5py
 import numpy as np
 
 from fatigue_pin.core.errors import FatiguePinError, ResultFileError
-from fatigue_pin.core.files import check_folder, check_output_dir, check_space, clone, fsync, locked, through_links
+from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
     RUN_ATTRIBUTES,
@@ -248,27 +248,23 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
             the write fails (full disk, permissions), naming the path.
     """
     path = through_links(path)  # a symbolic link is written through: the link stays, its target changes
-    tmp = path.with_name(path.name + ".tmp")
+
+    def write(tmp: Path) -> None:
+        compacted = _prepare(path, tmp)
+        with h5py.File(tmp, "a") as h5:
+            if compacted is not None:
+                h5.attrs["compacted_bytes"] = compacted
+            for key in skip:  # run names may be paths such as "sliding/torque_S10"
+                if key in h5:
+                    del h5[key]
+            fill(h5)
+            h5.attrs["format"] = FORMAT
+
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with locked(path.with_name(f".{path.name}.lock")):
             _check_room(path, new_bytes)
-            try:
-                compacted = _prepare(path, tmp)
-                with h5py.File(tmp, "a") as h5:
-                    if compacted is not None:
-                        h5.attrs["compacted_bytes"] = compacted
-                    for key in skip:  # run names may be paths such as "sliding/torque_S10"
-                        if key in h5:
-                            del h5[key]
-                    fill(h5)
-                    h5.attrs["format"] = FORMAT
-                fsync(tmp)
-                os.replace(tmp, path)
-                fsync(path.parent, directory=True)
-            finally:
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
+            atomic_write(path, write, tmp=path.with_name(path.name + ".tmp"))
     except OSError as exc:
         raise _io_error(path, exc) from exc
 

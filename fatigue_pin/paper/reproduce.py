@@ -225,9 +225,9 @@ def _report(rows: list[dict[str, object]], forward_table: str, preset: str, quic
 
 
 def _verify_rows(files: list[Path]) -> list[str]:
-    """One table row of :func:`fatigue_pin.verify.check.verify_run` figures per run of the files."""
+    """One table row of :func:`fatigue_pin.verify.verifier.verify_run` figures per run of the files."""
     from fatigue_pin.io.results import list_runs, read_run
-    from fatigue_pin.verify.check import verify_run
+    from fatigue_pin.verify import verify_run
 
     rows = []
     for path in files:

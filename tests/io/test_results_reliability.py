@@ -127,7 +127,7 @@ def test_a_write_failing_at_any_step_leaves_the_file_unchanged(tmp_path, monkeyp
     def fail(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    target = {"copy": (files.shutil, "copyfile"), "h5": (results, "_write_run"), "fsync": (results, "fsync"),
+    target = {"copy": (files.shutil, "copyfile"), "h5": (results, "_write_run"), "fsync": (files, "fsync"),
               "replace": (results.os, "replace")}[step]
     monkeypatch.setattr(*target, fail)
     with pytest.raises(ResultFileError, match=r"cannot write '.*a.h5': the disk is full \(no space left on device\); "

@@ -17,13 +17,12 @@ import numpy as np
 import pytest
 
 from fatigue_pin.cli.main import main
-from fatigue_pin.fatigue.models import MichaudFatigue, XiaFatigue
 from fatigue_pin.paper.curl import curl_study
 from fatigue_pin.paper.reproduce import _verify_rows
 from fatigue_pin.io.results import read_run, write_run
 from fatigue_pin.io.study import Study, run_study
 from fatigue_pin.ocp.transcription import IntervalFunctions, Transcription
-from fatigue_pin.verify.check import VerifyTolerances, numpy_rhs, verify_run
+from fatigue_pin.verify import VerifyTolerances, verify_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from conftest import small_curl  # noqa: E402
@@ -138,23 +137,24 @@ def test_single_shooting_drift_is_small_for_a_converged_solution(full_report):
 def test_a_diverging_single_shooting_is_reported_not_raised(full_file, monkeypatch):
     """When the open-loop integration of the rigid body fails (a long swinging horizon), verify
     reports an infinite drift with a note and still integrates the fatigue states to the end."""
-    import fatigue_pin.verify.check as verify
+    from fatigue_pin.verify import dynamics
 
     path, name = full_file
-    real = verify._integrate
+    real = dynamics.integrate
     calls = {"rigid": 0}
 
-    def failing(f, y0, dt, rtol, atol, method="DOP853"):
+    def failing(f, y0, dt, ref):
         if y0.size == 4:  # the rigid body (q, qdot of 2 joints): 50 gap checks, then single shooting
             calls["rigid"] += 1
             if calls["rigid"] > 50 + 10:
-                raise verify.ResultFileError("the reference integration failed: step size too small")
-        return real(f, y0, dt, rtol, atol, method)
+                raise dynamics.IntegrationFailed("step size too small")
+        return real(f, y0, dt, ref)
 
-    monkeypatch.setattr(verify, "_integrate", failing)
+    monkeypatch.setattr(dynamics, "integrate", failing)
     r = verify_run(read_run(path, name), single_shooting=True, rtol=1e-3, atol=1e-6, method="RK45")
     assert r.drift_q == float("inf") and any("interval 10" in n for n in r.notes)
     assert r.single_shooting_invariant_final < 1e-12  # the fatigue states went on to the end
+    assert not [c for c in r.failures if c.name.startswith("single shooting")]  # reported only
 
 
 def test_invariant_is_reported(full_file, full_report):
@@ -179,12 +179,14 @@ def test_task_coupling_and_bounds_violations(full_file):
     q = run.q.copy()
     q[25, 1] += 2e-3  # the 150 deg target
     r = verify_run(_with(run, q=q), tol)
-    assert [c.name for c in r.failures] == ["task targets"] and abs(r.task - 2e-3) < 1e-9
+    assert [c.name for c in r.failures] == ["task joint targets"] and abs(r.task - 2e-3) < 1e-9
     mf = run.fatigue["mf"].copy()
     mf[10, 2] = 0.999  # elbow_plus: TL + mf > 1 where it pulls
     tp = run.tau_plus.copy()
     tp[10, 1] = max(tp[10, 1], 5.0)
-    r = verify_run(_with(run, fatigue={**run.fatigue, "mf": mf}, tau_plus=tp), tol)
+    fatigued = run.fatigued.copy()
+    fatigued[10, 2] = 0.999
+    r = verify_run(_with(run, fatigue={**run.fatigue, "mf": mf}, fatigued=fatigued, tau_plus=tp), tol)
     assert "coupling TL + m_fatigued in [0, 1]" in [c.name for c in r.failures]
     assert "node 10, elbow_plus" in next(c.where for c in r.checks if c.name.startswith("coupling"))
     tm = run.tau_minus.copy()
@@ -213,18 +215,6 @@ def test_coarse_grid_fails_and_says_why():
     assert verify_run(run, VerifyTolerances(gap=10.0, gap_fatigue=1e-2)).passed
 
 
-def test_numpy_rhs_matches_the_models_rates_on_every_branch():
-    rng = np.random.default_rng(0)
-    models = [XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0),
-              MichaudFatigue(10, 10, 0.456, 0.0094, effort_threshold=0.2, effort_factor=0.1, stabilization_factor=1.0)]
-    for model in models:
-        f, p = numpy_rhs(model.kind), model.as_dict()
-        for _ in range(300):
-            m = rng.uniform(0, 1, model.n_states())
-            TL = float(rng.choice([rng.uniform(0, 1), p.get("effort_threshold", 0.5), m[0]]))
-            assert np.allclose(f(m, TL, p), model.rates(m, TL), rtol=1e-13, atol=1e-14)
-
-
 def test_cli_all_and_bad_input(full_file, sliding_file, tmp_path, capsys):
     path, name = full_file
     both = tmp_path / "both.h5"
@@ -246,3 +236,100 @@ def test_reproduce_report_rows(full_file):
     path, name = full_file
     rows = _verify_rows([path])
     assert len(rows) == 1 and rows[0].startswith(f"| {name} |") and rows[0].endswith("| passed |")
+
+
+# -- bad input: one line and exit 2, never a hang or a traceback --------------------------------------
+
+
+@pytest.fixture
+def alarm():
+    """Fail, rather than hang, a verify that does not return within 60 s (a NaN tolerance or a
+    NaN gravity made ``solve_ivp`` loop for ever)."""
+    import signal
+
+    def handler(signum, frame):
+        raise TimeoutError("verify did not return within 60 s")
+
+    old = signal.signal(signal.SIGALRM, handler)
+    signal.alarm(60)
+    yield
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, old)
+
+
+def _changed(path, name, tmp_path, **changes) -> str:
+    """A copy of the run with ``changes`` (RunResult fields; ``gravity``: a stored study with
+    that gravity; ``attrs``: attributes changed)."""
+    run = read_run(path, name)
+    if "gravity" in changes:
+        study = Study.from_toml(run.study)
+        text = study.to_toml().replace("[model]\n", f"[model]\ngravity = {changes.pop('gravity')}\n", 1)
+        changes["study"] = text
+    if "attrs" in changes:
+        changes["attrs"] = {**run.attrs, **changes["attrs"]}
+    out = tmp_path / "changed.h5"
+    write_run(out, _with(run, **changes))
+    return str(out)
+
+
+#: (case, argv after "verify FILE" or a change of the stored run, the message): docs/errors.md
+#: lists them under "verify".
+BAD_INPUT = [
+    ("verify-nan-rtol", ["--rtol", "nan"], {}, r"rtol = nan: expected a finite relative tolerance > 0"),
+    ("verify-zero-rtol", ["--rtol", "0"], {}, r"rtol = 0.0: expected a finite relative tolerance > 0"),
+    ("verify-negative-atol", ["--atol", "-1"], {}, r"atol = -1.0: expected a finite absolute tolerance >= 0"),
+    ("verify-infinite-atol", ["--atol", "inf"], {}, r"atol = inf: expected a finite absolute tolerance >= 0"),
+    ("verify-nan-gap-tol", ["--gap-tol", "nan"], {}, r"VerifyTolerances.gap = nan: expected a finite tolerance >= 0"),
+    ("verify-nan-gravity", [], {"gravity": "[nan, 0.0, -9.81]"}, r"gravity.*nan"),
+    ("verify-nan-dt", [], {"attrs": {"dt": float("nan")}}, r"interval length dt = nan; expected a finite duration > 0"),
+    ("verify-bad-torque-limits", [], {"attrs": {"tau_limits": np.array([50.0, -50.0, np.nan, -50.0])}},
+     r"torque limits \[50.0, -50.0, nan, -50.0\] N m; expected finite limits"),
+    ("verify-study-unloadable", [], {"study": "name = \n[model"}, r"its stored study does not load"),
+]
+
+
+@pytest.mark.parametrize("case, argv, changes, message", BAD_INPUT, ids=[c[0] for c in BAD_INPUT])
+def test_bad_input_is_one_line_and_exit_2(case, argv, changes, message, full_file, tmp_path, capsys, alarm):
+    import re
+
+    path, name = full_file
+    target = _changed(path, name, tmp_path, **changes) if changes else str(path)
+    code = main(["verify", target, *argv])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("fatigue-pin: error: ") and "Traceback" not in err
+    assert re.search(message, err), err
+
+
+@pytest.mark.parametrize("field, row, column, where", [("q", 12, 1, "node 12, q elbow"), ("qdot", 0, 0, "node 0, qdot shoulder"),
+                                                       ("tau_plus", 7, 1, "interval 7, tau_plus elbow")])
+def test_non_finite_stored_values_fail_a_check(field, row, column, where, full_file, tmp_path, capsys, alarm):
+    path, name = full_file
+    run = read_run(path, name)
+    values = getattr(run, field).copy()
+    values[row, column] = np.nan
+    bad = _changed(path, name, tmp_path, **{field: values})
+    assert main(["verify", bad, "--single-shooting"]) == 1
+    out = capsys.readouterr().out
+    failed = next(line for line in out.splitlines() if "FAILED" in line)
+    assert f"finite stored values 1.000e+00 > 0 ({where})" in failed
+    assert "not re-integrated: their stored values are not finite" in out and "Traceback" not in out
+
+
+def test_an_absurd_interval_is_bounded(full_file, tmp_path, capsys, alarm):
+    """A stored dt of 1e9 s would take the reference integration for ever: each interval stops
+    after MAX_EVALUATIONS rate evaluations, and after MAX_FAILED_INTERVALS the gap check stops."""
+    from fatigue_pin.verify.dynamics import MAX_FAILED_INTERVALS
+
+    path, name = full_file
+    bad = _changed(path, name, tmp_path, attrs={"dt": 1e9})
+    assert main(["verify", bad]) == 1
+    out = capsys.readouterr().out
+    assert "gap q inf > 0.001 (interval 0, " in out
+    assert f"failed on {MAX_FAILED_INTERVALS} intervals already" in out and "evaluations of the rates" in out
+
+
+def test_the_catalogue_lists_the_verify_cases():
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "errors.md").read_text()
+    missing = [case for case, *_ in BAD_INPUT if f"`{case}`" not in doc]
+    assert not missing, f"docs/errors.md lacks {missing}"

@@ -1,0 +1,115 @@
+"""Node-wise checks of ``fatigue-pin verify`` that need no integration: the stored numbers are
+finite, the coupling ``0 <= TL + m_fatigued <= 1``, the bounds (q, qdot, torques, fatigue states),
+the invariant ``|1 - sum of each half's states|``, and the numpy fatigue right-hand sides against
+the models' own ``rates`` (docs/verify.md gives the equations)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fatigue_pin.verify.fatigue_rhs import numpy_rhs
+from fatigue_pin.verify.report import VerifyCheck, VerifyTolerances, worst
+from fatigue_pin.verify.stored import Stored
+
+__all__ = ["finite_check", "coupling_check", "bound_checks", "invariant_checks", "rhs_check", "DEFAULT_VELOCITY_LIMIT"]
+
+#: Velocity bound where the URDF gives none (as :func:`fatigue_pin.robot.model.load_model`).
+DEFAULT_VELOCITY_LIMIT = 10 * math.pi
+
+
+def finite_check(s: Stored) -> VerifyCheck:
+    """How many stored numbers (q, qdot, torques, each half's fatigue states and fatigued
+    fraction) are NaN or infinite; any fails (tolerance 0), with the first one named."""
+    joints = s.joints
+    parts = [
+        ("node", s.Y, [f"q {j}" for j in joints] + [f"qdot {j}" for j in joints]),
+        ("node", s.M, s.state_labels),
+        ("node", np.asarray(s.run.fatigued, dtype=float), [f"fatigued {h.name}" for h in s.halves]),
+        ("interval", np.column_stack([s.run.tau_plus, s.run.tau_minus]),
+         [f"tau_plus {j}" for j in joints] + [f"tau_minus {j}" for j in joints]),
+    ]
+    count, where = 0, ""
+    for what, values, labels in parts:
+        bad = ~np.isfinite(np.asarray(values, dtype=float))
+        if bad.any() and not where:
+            k, j = np.argwhere(bad)[0]
+            where = f"{what} {k}, {labels[j] if j < len(labels) else ''}".rstrip(", ")
+        count += int(bad.sum())
+    return VerifyCheck("finite stored values", float(count), "count", 0.0, where or "every node and interval")
+
+
+def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float]:
+    """``TL + m_fatigued`` in [0, 1] at every node, with ``u_N := u_{N-1}`` and m_fatigued the
+    stored fatigued fraction of every half (:attr:`RunResult.fatigued`)."""
+    TL_nodes = np.vstack([s.TL, s.TL[-1:]])
+    c = TL_nodes + np.asarray(s.run.fatigued, dtype=float)
+    value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
+    return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value
+
+
+def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], float]:
+    """q within the URDF limits, |qdot| within the velocity limits, each torque half within
+    [0, limit] (plus) or [limit, 0] (minus), fatigue states in [0, 1]."""
+    run, model, joints = s.run, s.robot.pin_model, s.joints
+    q_lo, q_hi = np.array(model.lowerPositionLimit, dtype=float), np.array(model.upperPositionLimit, dtype=float)
+    v_max = np.array(model.velocityLimit, dtype=float)
+    v_max = np.where(np.isfinite(v_max) & (v_max > 0), v_max, DEFAULT_VELOCITY_LIMIT)
+    with np.errstate(invalid="ignore"):
+        b_q, at_bq = worst(np.maximum(q_lo - run.q, run.q - q_hi), joints, "node")
+        b_v, at_bv = worst(np.abs(run.qdot) - v_max, joints, "node")
+        lim_plus, lim_minus = s.limits[0::2], s.limits[1::2]
+        b_tp = np.maximum(-run.tau_plus, run.tau_plus - lim_plus)
+        b_tm = np.maximum(run.tau_minus, lim_minus - run.tau_minus)
+        b_t, at_bt = worst(np.column_stack([b_tp, b_tm]), [f"{j} plus" for j in joints] + [f"{j} minus" for j in joints], "interval")
+        b_m, at_bm = worst(np.maximum(-s.M, s.M - 1.0), s.state_labels, "node")
+    checks = [
+        VerifyCheck("bound q", b_q, "rad", tol.bound, at_bq),
+        VerifyCheck("bound qdot", b_v, "rad/s", tol.bound, at_bv),
+        VerifyCheck("bound torques", b_t, "N m", tol.bound, at_bt),
+        VerifyCheck("bound fatigue states in [0, 1]", b_m, "1", tol.bound, at_bm),
+    ]
+    return checks, max(b_q, b_v, b_t, b_m)
+
+
+def invariant_checks(s: Stored) -> tuple[list[VerifyCheck], float, float, str]:
+    """``|1 - sum of each half's states|`` at every node and at the last (reported only).
+
+    Returns:
+        the two lines, the worst value, the value at the last node and the sums per model kind.
+    """
+    off = s.offsets
+    sums = np.column_stack([s.M[:, off[i]:off[i + 1]].sum(axis=1) for i in range(len(s.halves))])
+    inv = np.abs(1.0 - sums)
+    invariant, at_inv = worst(inv, [h.name for h in s.halves], "node")
+    last = inv[-1][np.isfinite(inv[-1])]
+    inv_final = float(last.max()) if last.size else 0.0
+    kinds = {h.kind: " + ".join(h.states) for h in s.halves}
+    invariant_sum = "; ".join(f"{k}: {v}" for k, v in kinds.items())
+    name_sum = next(iter(kinds.values())) if len(kinds) == 1 else "sum of each half's states"
+    checks = [
+        VerifyCheck(f"invariant |1 - ({name_sum})|", invariant, "1", None, at_inv),
+        VerifyCheck("invariant at the last node", inv_final, "1", None, f"node {s.N}"),
+    ]
+    return checks, invariant, inv_final, invariant_sum
+
+
+def rhs_check(s: Stored, notes: list[str]) -> tuple[VerifyCheck, float]:
+    """The numpy fatigue right-hand sides against the models' ``rates`` on every stored node
+    (finite nodes only), with the node's target load (``u_N := u_{N-1}``)."""
+    TL_nodes = np.vstack([s.TL, s.TL[-1:]])
+    off = s.offsets
+    err = float("nan")
+    if any(numpy_rhs(h.kind) for h in s.halves):
+        err = 0.0
+        for k in range(s.N + 1):
+            for i, h in enumerate(s.halves):
+                m, TL = s.M[k, off[i]:off[i + 1]], TL_nodes[k, i]
+                if numpy_rhs(h.kind) is None or not (np.all(np.isfinite(m)) and np.isfinite(TL)):
+                    continue
+                err = max(err, float(np.max(np.abs(h.rhs(m, TL) - h.model.rates(m, TL)))))
+    without = sorted({h.kind for h in s.halves if numpy_rhs(h.kind) is None})
+    if without:
+        notes.append(f"no numpy transcription of fatigue model(s) {without}: integrated with the model's rates")
+    return VerifyCheck("rhs: numpy vs model rates", err, "1/s", None, "every node"), err

@@ -1,0 +1,250 @@
+"""The reference re-integration of ``fatigue-pin verify``: numeric ``pinocchio.aba`` and the numpy
+fatigue right-hand sides, integrated with ``scipy.integrate.solve_ivp`` over each interval with the
+stored piecewise-constant control.
+
+* :func:`gap_checks`: the multiple-shooting gaps ``|Phi(x_k, u_k, dt) - x_{k+1}|`` and, with the
+  stored substeps, the transcription's RK4 written again in numpy (its residual and its distance to
+  the exact flow);
+* :func:`single_shooting`: the stored controls over the whole horizon from the stored x_0.
+
+No integration can run for ever: the tolerances are validated (:class:`ReferenceIntegration`), an
+interval whose stored values are not finite is not integrated, a right-hand side that turns
+non-finite or an interval that needs more than :data:`MAX_EVALUATIONS` evaluations of it stops
+the integration (:class:`IntegrationFailed`), which is reported as an infinite gap on that
+interval; after :data:`MAX_FAILED_INTERVALS` such intervals the others are not integrated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from fatigue_pin.verify.report import ReferenceIntegration, VerifyCheck, VerifyReport, VerifyTolerances, worst
+from fatigue_pin.verify.stored import Stored
+
+__all__ = ["Dynamics", "IntegrationFailed", "integrate", "rk4", "gap_checks", "GapResult", "single_shooting"]
+
+Rhs = Callable[[float, np.ndarray], np.ndarray]
+
+#: Right-hand-side evaluations allowed per interval: a smooth interval takes tens of DOP853 steps
+#: of 12 evaluations at rtol 1e-10; a stiff or absurd one (a dt of 1e9 s, huge torques) is stopped.
+MAX_EVALUATIONS = 20_000
+#: Intervals whose integration may fail before the gap check stops integrating the others.
+MAX_FAILED_INTERVALS = 3
+
+
+class IntegrationFailed(Exception):
+    """The reference integration of one interval failed (solver failure or a non-finite rate)."""
+
+
+class Dynamics:
+    """Numeric right-hand sides of the rigid body (``pin.aba``) and of the fatigue states."""
+
+    def __init__(self, stored: Stored) -> None:
+        import pinocchio as pin
+
+        self.pin = pin
+        self.model = stored.robot.pin_model
+        self.data = self.model.createData()
+        self.nq = self.model.nq
+        self.halves = stored.halves
+        self.offsets = stored.offsets
+
+    def rigid(self, tau: np.ndarray) -> Rhs:
+        """d(q, qdot)/dt with the joint torques ``tau`` (nv,) held."""
+        nq, pin, model, data = self.nq, self.pin, self.model, self.data
+
+        def f(_t: float, y: np.ndarray) -> np.ndarray:
+            return np.concatenate([y[nq:], pin.aba(model, data, y[:nq], y[nq:], tau)])
+
+        return f
+
+    def fatigue(self, TL: np.ndarray) -> Rhs:
+        """dm/dt of every half's states with the target loads ``TL`` (halves,) held."""
+        halves, off = self.halves, self.offsets
+
+        def f(_t: float, m: np.ndarray) -> np.ndarray:
+            return np.concatenate([h.rhs(m[off[i]:off[i + 1]], TL[i]) for i, h in enumerate(halves)])
+
+        return f
+
+
+class _NonFinite(Exception):
+    pass
+
+
+def integrate(f: Rhs, y0: np.ndarray, dt: float, ref: ReferenceIntegration) -> np.ndarray:
+    """``y(dt)`` from ``y(0) = y0`` with ``solve_ivp`` (raises :class:`IntegrationFailed`)."""
+    from scipy.integrate import solve_ivp
+
+    if not np.all(np.isfinite(y0)):
+        raise IntegrationFailed("a non-finite initial state")
+
+    count = [0]
+
+    def guarded(t: float, y: np.ndarray) -> np.ndarray:
+        count[0] += 1
+        if count[0] > MAX_EVALUATIONS:
+            raise _NonFinite(f"more than {MAX_EVALUATIONS} evaluations of the rates (stiff, or an absurd step)")
+        d = f(t, y)
+        if not np.all(np.isfinite(d)):
+            raise _NonFinite(f"a non-finite rate at t = {t:g} s")
+        return d
+
+    try:
+        with np.errstate(all="ignore"):
+            sol = solve_ivp(guarded, (0.0, dt), y0, method=ref.method, rtol=ref.rtol, atol=ref.atol)
+    except _NonFinite as exc:
+        raise IntegrationFailed(str(exc)) from None
+    if not sol.success:
+        raise IntegrationFailed(str(sol.message))
+    return sol.y[:, -1]
+
+
+def rk4(f: Rhs, y: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """``steps`` classical Runge-Kutta steps over ``dt`` (the transcription's scheme, written again)."""
+    h = dt / steps
+    with np.errstate(all="ignore"):
+        for _ in range(steps):
+            k1 = f(0.0, y)
+            k2 = f(0.0, y + h / 2 * k1)
+            k3 = f(0.0, y + h / 2 * k2)
+            k4 = f(0.0, y + h * k3)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return y
+
+
+def finite_intervals(s: Stored) -> np.ndarray:
+    """Intervals whose two nodes and control are finite, (N,) bool."""
+    node = np.all(np.isfinite(s.Y), axis=1) & np.all(np.isfinite(s.M), axis=1)
+    ctrl = np.all(np.isfinite(s.tau), axis=1) & np.all(np.isfinite(s.TL), axis=1)
+    return node[:-1] & node[1:] & ctrl
+
+
+@dataclass
+class GapResult:
+    """The gap lines and the figures the report keeps."""
+
+    checks: list[VerifyCheck]
+    gap_q: float
+    gap_qdot: float
+    gap_fatigue: float
+    rk4_residual: float
+    rk4_truncation: float
+    rk4_where: str
+
+
+def gap_checks(s: Stored, dyn: Dynamics, tol: VerifyTolerances, ref: ReferenceIntegration, notes: list[str]) -> GapResult:
+    """Multiple-shooting gaps: each interval integrated from its stored node with its stored control
+    held; with the stored substeps, the transcription's RK4 too (its residual says whether the NLP
+    was solved, its distance to the exact flow how coarse the grid is)."""
+    N, nq, nm = s.N, s.nq, s.M.shape[1]
+    gy, gm = np.full((N, 2 * nq), np.nan), np.full((N, nm), np.nan)
+    res, trunc = np.full((N, 2 * nq + nm), np.nan), np.full((N, 2 * nq + nm), np.nan)
+    ok = finite_intervals(s)
+    failed: list[str] = []
+    for k in np.flatnonzero(ok):
+        if len(failed) >= MAX_FAILED_INTERVALS:
+            notes.append(f"the gaps of intervals {k} to {N - 1} were not computed: the reference integration failed "
+                         f"on {MAX_FAILED_INTERVALS} intervals already")
+            break
+        fy, fm = dyn.rigid(s.tau[k]), dyn.fatigue(s.TL[k])
+        try:
+            ey = integrate(fy, s.Y[k], s.dt, ref)
+            em = integrate(fm, s.M[k], s.dt, ref) if nm else s.M[k]
+        except IntegrationFailed as exc:
+            gy[k], gm[k] = np.inf, np.inf
+            failed.append(f"interval {k} ({exc})")
+            continue
+        gy[k], gm[k] = np.abs(ey - s.Y[k + 1]), np.abs(em - s.M[k + 1])
+        if s.substeps:
+            ry = rk4(fy, s.Y[k], s.dt, s.substeps)
+            rm = rk4(fm, s.M[k], s.dt, s.substeps) if nm else s.M[k]
+            res[k] = np.abs(np.concatenate([ry - s.Y[k + 1], rm - s.M[k + 1]]))
+            trunc[k] = np.abs(np.concatenate([ry - ey, rm - em]))
+    if not ok.all():
+        notes.append(f"{int((~ok).sum())} of {N} intervals not re-integrated: their stored values are not finite")
+    if failed:
+        notes.append(f"the reference integration failed on {len(failed)} interval(s), counted as infinite gaps: "
+                     + "; ".join(failed[:3]) + ("; ..." if len(failed) > 3 else ""))
+    gap_q, at_q = worst(gy[:, :nq], s.joints, "interval")
+    gap_v, at_v = worst(gy[:, nq:], s.joints, "interval")
+    gap_m, at_m = worst(gm, s.state_labels, "interval")
+    rk4_res = rk4_trunc = float("nan")
+    at_res = at_trunc = ""
+    if s.substeps:
+        rk4_res, at_res = worst(res, s.x_labels, "interval")
+        rk4_trunc, at_trunc = worst(trunc, s.x_labels, "interval")
+    checks = [
+        VerifyCheck("gap q", gap_q, "rad", tol.gap, at_q),
+        VerifyCheck("gap qdot", gap_v, "rad/s", tol.gap, at_v),
+        VerifyCheck("gap fatigue states", gap_m, "1", tol.gap_fatigue, at_m),
+    ]
+    rk4_lines = [
+        VerifyCheck(f"RK4 residual ({s.substeps} substeps, numpy)", rk4_res, "state", None, at_res),
+        VerifyCheck("RK4 truncation (RK4 - exact flow)", rk4_trunc, "state", None, at_trunc),
+    ]
+    return GapResult(checks + rk4_lines, gap_q, gap_v, gap_m, rk4_res, rk4_trunc, at_trunc)
+
+
+def coarse_grid_note(s: Stored, gaps: GapResult) -> str | None:
+    """Why the gaps fail when the nodes solve their own discretisation (a small RK4 residual)."""
+    failing = [c for c in gaps.checks if c.name.startswith("gap") and not c.passed]
+    if failing and s.substeps and gaps.rk4_residual <= 0.1 * min(c.tolerance for c in failing):
+        return (f"the gaps are the transcription's own RK4 error ({gaps.rk4_truncation:.2e} at {gaps.rk4_where}): the nodes "
+                f"solve the discretised problem (RK4 residual {gaps.rk4_residual:.1e}) but the grid ({s.substeps} substeps "
+                f"of {s.dt / s.substeps:g} s) is too coarse for the gap tolerance")
+    return None
+
+
+def _invariant(s: Stored, M: np.ndarray) -> np.ndarray:
+    off = s.offsets
+    return np.abs(1.0 - np.column_stack([M[:, off[i]:off[i + 1]].sum(axis=1) for i in range(len(s.halves))]))
+
+
+def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report: VerifyReport) -> None:
+    """Integrate the stored controls over the whole horizon from the stored x_0 and add the drift
+    of the states and of the invariant to ``report`` (reported only). The rigid body's open-loop
+    integration can blow up over long horizons: it is then reported as an infinite drift with a
+    note, and the fatigue states (which depend on the controls only) are integrated to the end."""
+    N, nq, Y, M = s.N, s.nq, s.Y, s.M
+    ys, ms = np.full_like(Y, np.nan), np.full_like(M, np.nan)
+    ys[0], ms[0] = Y[0], M[0]
+    diverged = stopped = None
+    for k in range(N):
+        if diverged is None:
+            try:
+                ys[k + 1] = integrate(dyn.rigid(s.tau[k]), ys[k], s.dt, ref)
+            except IntegrationFailed:
+                diverged = k
+        if M.shape[1] and stopped is None:
+            try:
+                ms[k + 1] = integrate(dyn.fatigue(s.TL[k]), ms[k], s.dt, ref)
+            except IntegrationFailed:
+                stopped = k
+    dq, at_dq = worst(np.abs(ys[:, :nq] - Y[:, :nq]), s.joints, "node")
+    dv, at_dv = worst(np.abs(ys[:, nq:] - Y[:, nq:]), s.joints, "node")
+    if diverged is not None:
+        dq = dv = float("inf")
+        at_dq = at_dv = f"diverged on interval {diverged} (open-loop integration of the rigid body)"
+        report.notes.append(f"single shooting: the rigid body's integration failed on interval {diverged} of {N}: "
+                            "an open-loop swing amplifies small differences; the fatigue states were integrated to the end")
+    dm, at_dm = worst(np.abs(ms - M), s.state_labels, "node")
+    if stopped is not None:
+        dm, at_dm = float("inf"), f"failed on interval {stopped}"
+    inv_ss, inv = _invariant(s, ms), _invariant(s, M)
+    d_inv, at_di = worst(np.abs(inv_ss - inv), [h.name for h in s.halves], "node")
+    report.drift_q, report.drift_qdot, report.drift_fatigue, report.drift_invariant = dq, dv, dm, d_inv
+    top = float(np.nanmax(inv_ss)) if inv_ss.size and np.isfinite(inv_ss).any() else 0.0
+    last = float(np.nanmax(inv_ss[-1])) if inv_ss.size and np.isfinite(inv_ss[-1]).any() else float("nan")
+    if inv_ss.size:
+        report.single_shooting_invariant, report.single_shooting_invariant_final = top, last
+    report.checks += [
+        VerifyCheck("single shooting: drift q", dq, "rad", None, at_dq),
+        VerifyCheck("single shooting: drift qdot", dv, "rad/s", None, at_dv),
+        VerifyCheck("single shooting: drift fatigue", dm, "1", None, at_dm),
+        VerifyCheck("single shooting: invariant there", top, "1", None, f"max over nodes; {last:.3e} at node {N}"),
+        VerifyCheck("single shooting: invariant drift", d_inv, "1", None, at_di),
+    ]

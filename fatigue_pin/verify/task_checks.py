@@ -1,0 +1,195 @@
+"""The task checks of ``fatigue-pin verify``: every item of the stored study's
+:class:`~fatigue_pin.ocp.task.Task`, evaluated on the stored nodes with numeric Pinocchio
+(``pinocchio.framesForwardKinematics``, ``data.oMf``) on the model the run was solved on.
+
+One report line per item kind the task holds, the worst violation over its items and nodes
+(beyond the item's own tolerance; 0 when every node meets it):
+
+============================  ================================================  ======
+kind                          violation at a node k of the item                  unit
+============================  ================================================  ======
+``JointTarget``               ``|q_j,k - value| - tolerance``                    rad
+``JointRange``                ``max(lower - q_j,k, q_j,k - upper)``              rad
+``FrameTarget``               ``FrameTarget.distance(p_k)`` (ball or box)        m
+``FramePlane``                ``-FramePlane.height(p_k)``                        m
+``FrameOrientation``          ``angle(R_k, rotation) - tolerance``               rad
+============================  ================================================  ======
+
+with ``p_k``, ``R_k`` the frame's world position and rotation at node k, and the nodes
+:meth:`Task.nodes` gives for the item's phase (every node for ranges and planes without a phase).
+A kind verify does not know (e.g. a Python :class:`StateConstraint`, whose expression is the
+package's own CasADi) is shown as "not checked", with a note naming it. The initial state is
+checked against the task's initial configuration, zero velocity and every half at rest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from fatigue_pin.core.errors import FatiguePinError
+from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget
+from fatigue_pin.verify.report import VerifyCheck, worst
+from fatigue_pin.verify.stored import Stored
+
+__all__ = ["task_checks", "KINDS"]
+
+Violation = tuple[float, str]  # (worst violation of one item, where)
+
+
+class _Frames:
+    """World placements of the frames the task names, at every stored node (numeric Pinocchio)."""
+
+    def __init__(self, model, q: np.ndarray) -> None:
+        self.model, self.q = model, q
+        self._placements: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def placements(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (nodes, 3) in m and rotations (nodes, 3, 3) of ``frame`` (NaN at non-finite nodes)."""
+        if frame not in self._placements:
+            import pinocchio as pin
+
+            from fatigue_pin.robot.kinematics import frame_id
+
+            fid = frame_id(self.model, frame)
+            data = self.model.createData()
+            p = np.full((self.q.shape[0], 3), np.nan)
+            R = np.full((self.q.shape[0], 3, 3), np.nan)
+            for k, qk in enumerate(self.q):
+                if np.all(np.isfinite(qk)):
+                    pin.framesForwardKinematics(self.model, data, qk)
+                    p[k], R[k] = data.oMf[fid].translation, data.oMf[fid].rotation
+            self._placements[frame] = (p, R)
+        return self._placements[frame]
+
+
+@dataclass
+class _Context:
+    q: np.ndarray  # (nodes, nq)
+    joints: list[str]
+    frames: _Frames
+    nodes: Callable[[float | None], list[int]]  # nodes of a phase (None: every node)
+
+
+def _worst_at(values: np.ndarray, nodes: list[int], describe: str) -> Violation:
+    values = np.asarray(values, dtype=float)
+    if not nodes or not np.isfinite(values).any():
+        return -math.inf, ""
+    i = int(np.nanargmax(values))
+    return float(values[i]), f"node {nodes[i]}, {describe}"
+
+
+def _joint(item, ctx: _Context) -> np.ndarray:
+    if item.joint not in ctx.joints:
+        raise FatiguePinError(f"joint {item.joint!r} is not a joint of the run {ctx.joints}")
+    return ctx.q[:, ctx.joints.index(item.joint)]
+
+
+def _joint_target(item: JointTarget, ctx: _Context) -> Violation:
+    nodes = ctx.nodes(item.at)
+    v = np.abs(_joint(item, ctx)[nodes] - item.value) - item.tolerance
+    return _worst_at(v, nodes, f"{item.joint} at {item.value:.6g}")
+
+
+def _joint_range(item: JointRange, ctx: _Context) -> Violation:
+    q = _joint(item, ctx)
+    nodes = ctx.nodes(None)
+    return _worst_at(np.maximum(item.lower - q, q - item.upper), nodes, f"{item.joint} in [{item.lower:.6g}, {item.upper:.6g}]")
+
+
+def _frame_target(item: FrameTarget, ctx: _Context) -> Violation:
+    nodes = ctx.nodes(item.at)
+    p, _ = ctx.frames.placements(item.frame)
+    v = [item.distance(p[k]) if np.all(np.isfinite(p[k])) else np.nan for k in nodes]
+    return _worst_at(v, nodes, f"{item.frame} at {list(item.position)} +- {item.tolerance:g} m ({item.shape})")
+
+
+def _frame_plane(item: FramePlane, ctx: _Context) -> Violation:
+    nodes = ctx.nodes(item.at)
+    p, _ = ctx.frames.placements(item.frame)
+    v = [-item.height(p[k]) for k in nodes]
+    return _worst_at(v, nodes, f"{item.frame} on {list(np.round(item.normal, 6))} . p >= {item.offset:g} m")
+
+
+def _frame_orientation(item: FrameOrientation, ctx: _Context) -> Violation:
+    nodes = ctx.nodes(item.at)
+    _, R = ctx.frames.placements(item.frame)
+    cos = [(np.trace(item.matrix.T @ R[k]) - 1.0) / 2.0 for k in nodes]
+    angle = np.arccos(np.clip(np.asarray(cos, dtype=float), -1.0, 1.0))
+    return _worst_at(angle - item.tolerance, nodes, f"{item.frame} within {item.tolerance:g} rad of its rotation")
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A task item kind verify checks: its report line, unit and evaluation."""
+
+    line: str
+    unit: str
+    evaluate: Callable[[Any, _Context], Violation]
+
+
+#: The task item kinds verify checks, in report order.
+KINDS: dict[type, Kind] = {
+    JointTarget: Kind("task joint targets", "rad", _joint_target),
+    JointRange: Kind("task joint ranges", "rad", _joint_range),
+    FrameTarget: Kind("task frame targets", "m", _frame_target),
+    FramePlane: Kind("task frame planes", "m", _frame_plane),
+    FrameOrientation: Kind("task frame orientations", "rad", _frame_orientation),
+}
+
+
+def _kind_line(kind: Kind, items: list, ctx: _Context, tol: float, notes: list[str]) -> VerifyCheck:
+    """The worst violation over the items of one kind (NaN with a note if one cannot be evaluated)."""
+    value, where = -math.inf, ""
+    for item in items:
+        try:
+            v, at = kind.evaluate(item, ctx)
+        except FatiguePinError as exc:
+            notes.append(f"{kind.line}: {' '.join(str(exc).split())}: not checked")
+            return VerifyCheck(kind.line, float("nan"), kind.unit, tol, "not checked")
+        if v > value:
+            value, where = v, at
+    return VerifyCheck(kind.line, max(value, 0.0), kind.unit, tol, where if value > 0 else f"{len(items)} item(s), every node met")
+
+
+def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
+    """One line per task item kind of the stored task, a "not checked" line per unknown kind, and
+    the initial state (see the module docstring). Without a stored task: "not checked" lines."""
+    if s.task is None:
+        return [VerifyCheck("task", float("nan"), "", tol, "not checked"), VerifyCheck("initial state", float("nan"), "", tol, "not checked")]
+    task = s.task
+    ctx = _Context(np.asarray(s.run.q, dtype=float), s.joints, _Frames(s.robot.pin_model, np.asarray(s.run.q, dtype=float)),
+                   lambda at: task.nodes(at, s.N))
+    checks = []
+    for cls, kind in KINDS.items():
+        items = [i for i in task.items if type(i) is cls]
+        if items:
+            checks.append(_kind_line(kind, items, ctx, tol, notes))
+    unknown: dict[str, int] = {}
+    for item in task.items:
+        if type(item) not in KINDS:
+            unknown[type(item).__name__] = unknown.get(type(item).__name__, 0) + 1
+    for name, count in unknown.items():
+        checks.append(VerifyCheck(f"task {name}", float("nan"), "", tol, "not checked"))
+        notes.append(f"task items of kind {name} ({count}) not checked: verify evaluates "
+                     f"{', '.join(c.__name__ for c in KINDS)}")
+    if not task.items:
+        notes.append("the stored task has no items: only the initial state is checked")
+    checks.append(_initial_state(s, tol, notes))
+    return checks
+
+
+def _initial_state(s: Stored, tol: float, notes: list[str]) -> VerifyCheck:
+    """abs(x_0 - (q_init, 0, rest state of each half))."""
+    try:
+        q0 = s.task.initial_configuration(s.robot)
+    except FatiguePinError as exc:
+        notes.append(f"initial state not checked: {exc}")
+        return VerifyCheck("initial state", float("nan"), "", tol, "not checked")
+    rest = np.concatenate([h.model.rest_state() for h in s.halves]) if s.halves else np.zeros(0)
+    err = np.concatenate([np.abs(s.run.q[0] - q0), np.abs(s.run.qdot[0]), np.abs(s.M[0] - rest)])
+    value, where = worst(err[None, :], s.x_labels, "node")
+    return VerifyCheck("initial state", value, "", tol, where or "node 0")

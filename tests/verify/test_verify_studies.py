@@ -1,0 +1,229 @@
+"""``fatigue-pin verify`` on real results of the shipped studies (studies/*.toml): it passes on a
+short result of every study, on the model the run was solved on (payload and gravity included),
+checks every task item kind the study declares, and fails when one node is moved.
+
+Each study is shortened (:func:`short`): the fewest cycles its horizon allows (one cycle; a
+sliding study keeps one window of one cycle), evaluated without compiling, on a grid whose RK4
+error is below verify's default gap tolerances (1e-3 rad, rad/s; 1e-5 for the fatigue states).
+The gaps compare the nodes with the exact flow, so they include the transcription's own RK4
+error, which the studies' own grids do not always keep below those tolerances (the UR5 studies'
+2 substeps of 0.05 s: gap qdot 1.1e-3 rad/s, fatigue gap 1.4e-4, measured on ur5_carry).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fatigue_pin.cli.main import main
+from fatigue_pin.io.results import list_runs, read_run, write_run
+from fatigue_pin.io.study import Study, run_study
+from fatigue_pin.verify import VerifyTolerances, verify_run
+
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
+
+#: Length of an RK4 substep (s) that keeps the RK4 error below the default gap tolerances: on the
+#: curl 0.0125 s (10 intervals of 0.1 s, 8 substeps: gap qdot 2.4e-4 rad/s), on the UR5 0.025 s
+#: (its fatigue gap is the tightest: 4.9e-6 with LD = 10 1/s).
+SUBSTEP = {"arm26": 0.0125, "ur5": 0.025}
+#: Grids (intervals per cycle, substeps) for the studies the rule of :func:`short` does not fit:
+#: the curl with a 10 kg dumbbell in 2 s cycles swings faster than the paper's 3.6 kg (one window
+#: of one cycle: 20 intervals with 8 substeps of 0.0125 s, gap qdot 8.4e-3 rad/s; its own 50 with
+#: 5 substeps of 0.008 s, 1.4e-3; 50 with 8 of 0.005 s, 7.7e-5).
+GRID = {"curl_physiological.toml": (50, 8)}
+
+
+def short(study: Study, grid: tuple[int, int] | None = None) -> dict:
+    """The changes that make a short, uncompiled version of ``study`` that verify can pass with
+    its default tolerances.
+
+    A sliding window and a full horizon with an end box (``cyclic_end``) end near their initial
+    state: 10 intervals per second with substeps of :data:`SUBSTEP`. A full horizon with a free
+    end velocity whips the arm in its last interval (docs/verify.md), which only the paper's grid
+    (50 intervals per second, 5 substeps) resolves within 1e-3 rad/s. ``grid``: (intervals per
+    cycle, substeps) instead of these (:data:`GRID`).
+    """
+    h, task = study.horizon, study.data["task"]
+    duration = float(task["cycle_duration"])
+    changes: dict = {"solver.compile": False}
+    if h["kind"] == "sliding":
+        changes.update({"horizon.cycles": 1, "horizon.max_cycles": 1})
+    elif h["kind"] == "max-cycles":
+        changes.update({"horizon.max_cycles": 1})
+    else:
+        changes.update({"horizon.cycles": 1})
+    free_end = h["kind"] != "sliding" and not h["cyclic_end"]
+    if free_end:
+        n, substeps = round(50 * duration), 5
+    else:
+        n = round(10 * duration)
+        substeps = math.ceil(duration / n / SUBSTEP.get(study.data["model"]["urdf"], 0.0125))
+    n, substeps = grid or (n, substeps)
+    changes.update({"task.intervals_per_cycle": n, "transcription.substeps": substeps})
+    return changes
+
+
+def _sources() -> list[tuple[str, int | None]]:
+    """(study file, sweep job) for every file of studies/: a study file, or two jobs of a sweep
+    file (its S = 0 sliding and max-cycles cases; the S = 10 ones equal curl_*_paper.toml)."""
+    out: list[tuple[str, int | None]] = []
+    for path in sorted(STUDIES.glob("*.toml")):
+        if "base" not in tomllib.loads(path.read_text()):
+            out.append((path.name, None))
+            continue
+        from fatigue_pin.sweep.jobs import Sweep
+
+        jobs = Sweep.from_file(path).jobs()
+        kinds: dict[str, int] = {}
+        for job in jobs:
+            if job.values.get("fatigue.S") == 0.0:
+                kinds.setdefault(job.study.horizon["kind"], job.index)
+        out += [(path.name, index) for index in sorted(kinds.values())]
+    return out
+
+
+SOURCES = _sources()
+
+
+def _study(source: tuple[str, int | None]) -> Study:
+    name, job = source
+    if job is None:
+        return Study.from_file(STUDIES / name)
+    from fatigue_pin.sweep.jobs import Sweep
+
+    return Sweep.from_file(STUDIES / name).jobs()[job].study
+
+
+@pytest.fixture(scope="module")
+def solved(tmp_path_factory):
+    """``solved(source)``: the result file of the short version of a study, solved once per module."""
+    folder = tmp_path_factory.mktemp("studies")
+    cache: dict[tuple[str, int | None], Path] = {}
+
+    def solve(source: tuple[str, int | None]) -> Path:
+        if source not in cache:
+            study = _study(source)
+            out = folder / f"{Path(source[0]).stem}_{source[1]}.h5"
+            run_study(study.replace(short(study, GRID.get(source[0]))), out)
+            cache[source] = out
+        return cache[source]
+
+    return solve
+
+
+@pytest.mark.parametrize("source", SOURCES, ids=[n if j is None else f"{n}[job {j}]" for n, j in SOURCES])
+def test_verify_passes_on_a_short_result_of_every_study(source, solved, capsys):
+    out = solved(source)
+    runs = list_runs(out)
+    assert runs
+    code = main(["verify", str(out), "--all"])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert text.count("  PASSED") == len(runs) and "Traceback" not in text
+    study = _study(source)
+    kinds = {"task joint targets": any("joint" in t for t in study.data["task"]["targets"]),
+             "task frame targets": any("position" in t for t in study.data["task"]["targets"]),
+             "task frame planes": bool(study.data["task"]["planes"])}
+    for line, declared in kinds.items():  # every kind the study declares has its line, checked
+        assert (f"  {line} " in text) == declared, (line, text)
+
+
+def test_the_sources_cover_every_file_of_studies():
+    assert {n for n, _ in SOURCES} == {p.name for p in STUDIES.glob("*.toml")}
+    assert len(SOURCES) >= len(list(STUDIES.glob("*.toml")))
+
+
+# -- a frame-target study with a payload: the UR5 carrying 4 kg ------------------------------------------
+
+CARRY = ("ur5_carry.toml", None)
+
+
+def _with_study(run, study: Study):
+    return dataclasses.replace(run, study=study.to_toml())
+
+
+def test_frame_target_study_with_a_payload_passes(solved):
+    run = read_run(solved(CARRY))
+    r = verify_run(run)
+    assert r.passed, r.table()
+    assert r.gap_qdot < 1e-3 and r.gap_fatigue < 1e-5 and r.rk4_residual < 1e-6
+    targets, plane = r.check("task frame targets"), r.check("task frame planes")
+    assert targets.checked and plane.checked and targets.unit == "m"
+    assert targets.value < 1e-6 and plane.value < 1e-6  # IPOPT's tolerance
+    # the payload is part of the model: without it the same nodes miss the dynamics by far
+    study = Study.from_toml(run.study)
+    bare = study.replace({"model.payload": None})
+    r2 = verify_run(_with_study(run, bare))
+    assert not r2.passed and r2.gap_qdot > 100 * r.gap_qdot, r2.table()
+
+
+def test_frame_target_study_fails_when_one_node_moves(solved, tmp_path, capsys):
+    run = read_run(solved(CARRY))
+    n = run.q.shape[0] - 1
+    k = n // 2  # the place target (phase 0.5)
+    q = run.q.copy()
+    q[k, 0] += 0.2  # shoulder pan: the tool swings about 7 cm sideways
+    bad = tmp_path / "bad.h5"
+    write_run(bad, dataclasses.replace(run, q=q))
+    assert main(["verify", str(bad)]) == 1
+    failed = next(line for line in capsys.readouterr().out.splitlines() if "FAILED" in line)
+    assert "gap q" in failed and "task frame targets" in failed and f"node {k}" in failed
+    # the frame target's violation, from the tool's position by numeric Pinocchio
+    import pinocchio as pin
+
+    study = Study.from_toml(run.study)
+    model = study.replace({"model.urdf": "ur5"}).model().pin_model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q[k])
+    p = data.oMf[model.getFrameId("tool0")].translation
+    target = next(t for t in study.data["task"]["targets"] if t["at"] == 0.5)
+    expected = np.linalg.norm(p - np.array(target["position"])) - target["tolerance"]
+    r = verify_run(read_run(bad))
+    assert r.check("task frame targets").value == pytest.approx(expected, rel=1e-9) and expected > 0.03
+
+
+def test_planes_and_orientations_are_checked(solved):
+    """A plane above the tool's lowest node and an orientation target 0.1 rad off the tool's
+    rotation at phase 0.5, added to the stored study: verify reports their violations, computed
+    here from numeric Pinocchio kinematics."""
+    import pinocchio as pin
+
+    run = read_run(solved(CARRY))
+    study = Study.from_toml(run.study)
+    model = study.replace({"model.urdf": "ur5"}).model().pin_model
+    data, fid = model.createData(), model.getFrameId("tool0")
+    z, R = [], []
+    for qk in run.q:
+        pin.framesForwardKinematics(model, data, qk)
+        z.append(data.oMf[fid].translation[2])
+        R.append(data.oMf[fid].rotation.copy())
+    k = (run.q.shape[0] - 1) // 2
+    off = R[k] @ pin.rpy.rpyToMatrix(0.1, 0.0, 0.0)  # 0.1 rad about the tool's x axis
+    task = study.data["task"]
+    changed = study.replace({
+        "task.planes": [*task["planes"], {"frame": "tool0", "normal": [0.0, 0.0, 2.0], "offset": float(min(z) + 0.01)}],
+        "task.targets": [*task["targets"], {"frame": "tool0", "rpy": pin.rpy.matrixToRpy(off).tolist(), "at": 0.5,
+                                            "angle_tolerance": 0.04}],
+    })
+    r = verify_run(_with_study(run, changed), VerifyTolerances(task=1e-3))
+    plane, orientation = r.check("task frame planes"), r.check("task frame orientations")
+    assert plane.value == pytest.approx(0.01, abs=1e-12) and f"node {int(np.argmin(z))}" in plane.where
+    assert orientation.value == pytest.approx(0.1 - 0.04, abs=1e-9) and f"node {k}" in orientation.where
+    assert {c.name for c in r.failures} == {"task frame planes", "task frame orientations"}
+
+
+# -- the physiological curl: a payload on arm26 -------------------------------------------------------
+
+
+def test_physiological_payload_curl_passes(solved):
+    run = read_run(solved(("curl_physiological.toml", None)))
+    r = verify_run(run)
+    assert r.passed, r.table()
+    bare = Study.from_toml(run.study).replace({"model.payload": None})
+    r2 = verify_run(_with_study(run, bare))  # 6.4 kg less in the hand
+    assert "gap qdot" in [c.name for c in r2.failures] and r2.gap_qdot > 1.0
