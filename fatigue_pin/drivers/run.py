@@ -207,13 +207,17 @@ def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, inter
 #: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
 #: ``sliding/torque_S0_failed_window``.
 FAILED_WINDOW_SUFFIX = "_failed_window"
+#: Suffix of the run that holds a sliding run's windows while it replaces a run of the same name
+#: (the old run stays until the new one is complete), e.g. ``sliding/torque_S0_in_progress``.
+IN_PROGRESS_SUFFIX = "_in_progress"
 
 
 #: Groups of a result file that hold no user run: search tables and the searches' step runs.
 RESERVED_GROUPS = ("search", "searched")
 #: The grammar of run names, as said in messages and docs/results.md.
 RUN_NAME_GRAMMAR = ("segments of letters, digits and _ - . + = , separated by '/' (none empty, none starting with "
-                    "'.'), at most 200 characters, not under search/ or searched/, not ending with _failed_window")
+                    "'.'), at most 200 characters, not under search/ or searched/, not ending with _failed_window or "
+                    "_in_progress")
 _SEGMENT = re.compile(r"[A-Za-z0-9_+=,-][A-Za-z0-9_.+=,-]*")
 
 
@@ -238,7 +242,8 @@ def check_run_name(name: object, internal: bool = False) -> str:
     segments = name.split("/")
     if not all(_SEGMENT.fullmatch(s) for s in segments):
         raise bad
-    if segments[0] == "search" or not internal and (segments[0] in RESERVED_GROUPS or name.endswith(FAILED_WINDOW_SUFFIX)):
+    own = name.endswith(FAILED_WINDOW_SUFFIX) or name.endswith(IN_PROGRESS_SUFFIX)  # the drivers name these
+    if segments[0] == "search" or not internal and (segments[0] in RESERVED_GROUPS or own):
         raise bad
     return name
 
@@ -267,6 +272,15 @@ class RunStore(Protocol):
     def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
         """Add or replace search table ``name``: one row per solve (:data:`SEARCH_DTYPE` fields)."""
         ...
+
+    def delete(self, name: str) -> None:
+        """Remove run ``name`` (only a run; nothing if there is none)."""
+        ...
+
+
+def in_progress_name(name: str) -> str:
+    """Run name under which a sliding run replacing the run ``name`` keeps its windows until it is complete."""
+    return f"{name}{IN_PROGRESS_SUFFIX}"
 
 
 def failed_window_name(name: str) -> str:

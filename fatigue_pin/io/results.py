@@ -52,6 +52,7 @@ from fatigue_pin.core.errors import FatiguePinError, ResultFileError
 from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
+    IN_PROGRESS_SUFFIX,
     RUN_ATTRIBUTES,
     RUN_NAME_GRAMMAR,
     SEARCH_DTYPE,
@@ -63,7 +64,7 @@ from fatigue_pin.drivers.run import (
 
 __all__ = [
     "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
-    "check_output", "check_output_dir", "check_run_slot", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
+    "check_output", "check_output_dir", "check_run_slot", "delete_run", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
     "write_run", "write_search",
 ]
 
@@ -327,6 +328,21 @@ def write_run(path: str | Path, run: RunResult) -> Path:
     return path
 
 
+def delete_run(path: str | Path, name: str) -> None:
+    """Remove run ``name`` from the file ``path`` (atomic); only a run is ever removed, and a
+    missing file or run leaves everything as it is."""
+    path = Path(path)
+    check_run_name(name, internal=True)
+    if not path.exists() or name not in list_runs(path, failed_windows=True):
+        return
+
+    def fill(h5: h5py.File) -> None:
+        if _check_slot(h5, name, path):
+            del h5[name]
+
+    _atomic_rewrite(path, set(), fill)
+
+
 def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any] | None = None) -> None:
     """Write the table of a max-cycles search as ``/search/<name>`` (atomic), one row per solve:
     n_cycles, converged, IPOPT status, iterations, wall_time_s, kind (how it ended,
@@ -421,8 +437,8 @@ def _run_names(h5: h5py.File) -> list[str]:
 
 
 def _main_runs(names: list[str]) -> list[str]:
-    """``names`` without the failed windows of sliding runs."""
-    return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
+    """``names`` without the failed windows of sliding runs and the runs in progress."""
+    return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX) and not n.endswith(IN_PROGRESS_SUFFIX)]
 
 
 @contextlib.contextmanager
@@ -513,6 +529,9 @@ class ResultFile:
 
     def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
         write_search(self.path, name, rows, attrs)
+
+    def delete(self, name: str) -> None:
+        delete_run(self.path, name)
 
     def __repr__(self) -> str:
         return f"ResultFile({str(self.path)!r})"
