@@ -113,7 +113,7 @@ def test_a_damaged_run_is_one_error(tmp_path, monkeypatch):
         raise OSError("Can't read data (wrong B-tree signature)")
 
     monkeypatch.setattr(results, "_read_run", broken)
-    with pytest.raises(ResultFileError, match=r"run 'full/a' in '.*a.h5' cannot be read \(Can't read data"):
+    with pytest.raises(ResultFileError, match=r"run 'full/a' in '.*a.h5' cannot be read \(OSError: Can't read data"):
         read_run(path, "full/a")
 
 
