@@ -1,6 +1,7 @@
 """Fit Xia's 3CC (F, R) or 3CC-r (F, R, r) to measured endurance times.
 
-Data: a CSV file with columns ``target_load`` (fraction of maximum, in (0, 1)) and
+Data: a CSV file (UTF-8, a byte-order mark allowed; separated by commas, or by ``;`` with decimal
+commas or by tabs, as Excel writes them; each column once) with columns ``target_load`` (fraction of maximum, in (0, 1)) and
 ``endurance_time_s`` (s, > 0), and optionally ``duty_cycle`` (in (0, 1]; 1 or empty: sustained) and
 ``cycle_s`` (s, > 0; needed when ``duty_cycle < 1``). Each row is one task's endurance time.
 
@@ -151,7 +152,11 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
         raise CalibrationDataError(f"endurance data {str(p)!r} does not exist (or is not a file): expected a CSV file")
     try:
         with p.open(newline="", encoding="utf-8-sig") as fh:  # utf-8-sig: a byte-order mark (Excel) is skipped
-            reader = csv.DictReader(fh)
+            first = fh.readline()
+            fh.seek(0)
+            # Excel writes ';' where the decimal mark is a comma, and tab-separated files are common
+            delimiter = max(",;\t", key=first.count) if first.count(",") == 0 else ","
+            reader = csv.DictReader(fh, delimiter=delimiter)
             header = [h.strip() for h in (reader.fieldnames or [])]
             rows = list(reader)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
@@ -177,7 +182,7 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
                 values[col].append(math.nan)
                 continue
             try:
-                values[col].append(float(text))
+                values[col].append(float(text.replace(",", ".") if delimiter == ";" else text))  # ';': decimal commas
             except ValueError:
                 raise CalibrationDataError(f"{p.name}: row {i}: {col} = {text!r}: expected a number") from None
     if not rows:

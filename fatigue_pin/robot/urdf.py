@@ -10,7 +10,9 @@ kind of bad input the parser would reject or that fatigue_pin cannot model:
 * a joint without type, without a known parent or child link;
 * a revolute or prismatic joint without ``<limit>``, or without its ``effort`` or ``velocity``;
 * a number that is not a finite number (``lower="zero"``, ``upper="nan"``, ``xyz="0 0"``);
-* a lower position limit above the upper one;
+* a lower position limit above the upper one, an effort limit <= 0, a velocity limit < 0, a
+  zero joint axis;
+* a ``<mass>`` without its value, an ``<inertia>`` without one of its six entries;
 * (:func:`check_mimic_joints`) a ``<mimic>`` joint that is not locked (its motion is tied to
   another joint's; loaded as it is, it would be an independent actuated joint);
 * a link of negative mass or with negative principal moments on the diagonal of its inertia.
@@ -82,6 +84,9 @@ def _check_joint(path: Path, joint: ET.Element, links: set[str]) -> None:
             raise _bad(path, f"joint [{name}]: no {end} link, or an unknown one")
     for element in joint.iter():
         _numbers(path, f"joint [{name}]", element)
+    axis = joint.find("axis")
+    if axis is not None and axis.get("xyz") is not None and all(float(v) == 0.0 for v in axis.get("xyz").split()):
+        raise ModelError(f"{path}: joint {name!r} has axis xyz = {axis.get('xyz')!r}; expected a non-zero axis in its <axis> tag")
     limit = joint.find("limit")
     if kind not in ("revolute", "prismatic"):
         return
@@ -90,6 +95,12 @@ def _check_joint(path: Path, joint: ET.Element, links: set[str]) -> None:
     for key in ("effort", "velocity"):
         if limit.get(key) is None:
             raise _bad(path, f"joint [{name}]: limit has no {key}")
+    effort, velocity = float(limit.get("effort")), float(limit.get("velocity"))
+    if effort <= 0:
+        raise ModelError(f"{path}: joint {name!r} has effort limit {effort}; expected a finite effort > 0 in its <limit> tag")
+    if velocity < 0:
+        raise ModelError(f"{path}: joint {name!r} has velocity limit {velocity}; expected a speed >= 0 in its <limit> tag "
+                         "(0: none, taken as 10 pi)")
     lower, upper = float(limit.get("lower", 0.0)), float(limit.get("upper", 0.0))
     if lower > upper:
         raise ModelError(f"{path}: joint {name!r} has lower limit {lower:g} above its upper limit {upper:g}; "
@@ -104,7 +115,13 @@ def _check_link(path: Path, link: ET.Element) -> None:
     if inertial is None:
         return
     mass = inertial.find("mass")
-    if mass is not None and mass.get("value") is not None and float(mass.get("value")) < 0:
+    if mass is not None and mass.get("value") is None:
+        raise _bad(path, f"link [{name}]: <mass> has no value; expected <mass value=\"...\"/> (kg)")
+    inertia = inertial.find("inertia")
+    missing = [k for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz") if inertia is not None and inertia.get(k) is None]
+    if missing:
+        raise _bad(path, f"link [{name}]: <inertia> lacks {missing}; expected ixx, ixy, ixz, iyy, iyz and izz (kg m^2)")
+    if mass is not None and float(mass.get("value")) < 0:
         raise ModelError(f"{path}: link {name!r} has mass {float(mass.get('value')):g}; expected a mass >= 0 (kg) in its <inertial>")
     inertia = inertial.find("inertia")
     if inertia is not None:

@@ -182,3 +182,15 @@ def test_cli_calibrate_checks_output_before_reading(tmp_path, out, message):
     args = _parser().parse_args(["calibrate", str(tmp_path / "absent.csv"), "--out", str(tmp_path / out)])
     with pytest.raises(OutputLocationError, match=re.escape(message)):
         args.func(args)
+
+
+@pytest.mark.parametrize("text", ["target_load;endurance_time_s\n0,5;100\n0,3;300\n", "target_load\tendurance_time_s\n0.5\t100\n0.3\t300\n",
+                                  "target_load,endurance_time_s\r\n0.5,100\r\n0.3,300\r\n"])
+def test_excel_separators_and_decimal_commas_are_read(tmp_path, text):
+    """Excel writes ';' with decimal commas where the comma is the decimal mark; tabs and
+    Windows line ends are common too: all read as the same data."""
+    path = tmp_path / "data.csv"
+    path.write_text(text)
+    data = read_endurance_csv(path)
+    np.testing.assert_array_equal(data.target_load, [0.5, 0.3])
+    np.testing.assert_array_equal(data.endurance_time_s, [100.0, 300.0])

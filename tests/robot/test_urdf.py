@@ -32,6 +32,11 @@ def _urdf(tmp_path, old: str, new: str, name: str = "robot.urdf"):
     (ELBOW, 'name="elbow"', r"joint \[elbow\] lacks its type attribute"),
     ('<mass value="1.534315"/>', '<mass value="-0.001"/>', r"link 'forearm' has mass -0.001; expected a mass >= 0"),
     (LIMIT, 'lower="0.5" upper="0.4"', r"joint 'elbow' has lower limit 0.5 above its upper limit 0.4"),
+    ('<axis xyz="0.049400012 0.036600009 0.998108250"/>', '<axis xyz="0 0 0"/>', r"joint 'elbow' has axis xyz = '0 0 0'; expected a non-zero"),
+    ('<mass value="1.864572"/>', "<mass/>", r"link \[humerus\]: <mass> has no value"),
+    ('ixy="0" ixz="0" iyy="0.004551"', 'ixz="0" iyy="0.004551"', r"link \[humerus\]: <inertia> lacks \['ixy'\]"),
+    ('effort="50.0" velocity="31.41592653589793"/>', 'effort="-5" velocity="31.41592653589793"/>', r"joint 'shoulder' has effort limit -5.0"),
+    ('effort="50.0" velocity="31.41592653589793"/>', 'effort="50" velocity="-1"/>', r"joint 'shoulder' has velocity limit -1.0; expected a speed >= 0"),
 ])
 def test_bad_urdf_is_one_line(tmp_path, capfd, old, new, message):
     path = _urdf(tmp_path, old, new)
