@@ -15,6 +15,7 @@ docs/robot-study.md.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import tempfile
 import time
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fatigue_pin.io.results import ResultFile
-from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
+from fatigue_pin.drivers.sliding import SlidingHorizon
 from fatigue_pin.io.study import Study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
@@ -32,13 +33,11 @@ CASES = {"ur5_carry": STUDIES / "ur5_carry.toml", "arm26_curl": STUDIES / "curl_
 
 def measure(path: Path, windows: int, cache_dir: Path) -> dict:
     study = Study.from_file(path)
-    h = study.horizon
+    horizon = study.horizon_settings()
     t0 = time.perf_counter()
     problem = study.problem()
-    settings = SlidingSettings(window=h["cycles"], advance=h["advance"], max_cycles=h["cycles"] + windows - 1,
-                               end_tolerance=h["end_tolerance"], failure_iterations=h["failure_iterations"],
-                               min_iterations=h["min_iterations"], warmup=h["warmup"])
-    runner = SlidingHorizon(problem, settings, study.transcription(), study.solver(cache_dir), guess=h["guess"])
+    settings = dataclasses.replace(horizon.sliding_settings(), max_cycles=horizon.cycles + windows - 1)
+    runner = SlidingHorizon(problem, settings, study.transcription(), study.solver(cache_dir), guess=horizon.guess)
     build = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as tmp:
         run = runner.run(ResultFile(Path(tmp) / "bench.h5"))

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"== {cost}, S = {S:g}, preset {args.preset}", flush=True)
             t0 = time.perf_counter()
             out = args.out / f"full_{cost}_S{S:g}.h5"
-            result = run_study(study, out, progress=lambda s: print(s, flush=True), resume=True)
+            result = run_study(study, out, progress=lambda s: print(s, flush=True), resume=True).search
             solve = sum(float(r["wall_time_s"]) for r in result.tried)
             if result.run is not None:  # why it cannot do one more: capacities against the holding torques
                 model = study.problem().model

@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
         if out.exists() and name in list_runs(out) and read_run(out, name).attrs.get("finished"):
             run = read_run(out, name)  # done before
         else:
-            run = run_study(study, out, resume=True, progress=lambda s: print(s, flush=True))
+            run = run_study(study, out, resume=True, progress=lambda s: print(s, flush=True)).run
         elapsed = time.perf_counter() - t0
         model = study.problem().model
         q0 = np.asarray(study.data["task"]["q_init"], dtype=float)

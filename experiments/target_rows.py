@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
                 out, name = args.out / f"{cost}.h5", f"{variant}_S{S:g}"
                 print(f"== {cost}, S = {S:g}, {variant}", flush=True)
                 with target_subset(subset):
-                    run = run_study(study, out, name=name, progress=lambda s: print(s, flush=True))
+                    run = run_study(study, out, name=name, progress=lambda s: print(s, flush=True)).run
                 windows = run.windows
                 converged = int(windows["converged"].sum())
                 failed = windows[~windows["converged"]]

@@ -28,6 +28,7 @@ _API: dict[str, str] = {
     # robot
     "RobotModel": "fatigue_pin.robot.model",
     "Payload": "fatigue_pin.robot.model",
+    "ModelSource": "fatigue_pin.robot.model",
     "load_model": "fatigue_pin.robot.model",
     "resolve_model": "fatigue_pin.robot.model",
     # fatigue
@@ -64,11 +65,13 @@ _API: dict[str, str] = {
     "SearchResult": "fatigue_pin.drivers.search",
     "SlidingSettings": "fatigue_pin.drivers.sliding",
     "SlidingHorizon": "fatigue_pin.drivers.sliding",
+    "Horizon": "fatigue_pin.drivers.horizon",
     "RunResult": "fatigue_pin.drivers.run",
     # files
     "Study": "fatigue_pin.io.study",
-    "StudyError": "fatigue_pin.io.study",
+    "StudyError": "fatigue_pin.io.schema",
     "run_study": "fatigue_pin.io.study",
+    "StudyResult": "fatigue_pin.io.study",
     "ResultFileError": "fatigue_pin.core.errors",
     "ResultFile": "fatigue_pin.io.results",
     "read_run": "fatigue_pin.io.results",

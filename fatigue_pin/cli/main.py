@@ -7,8 +7,12 @@ solving happens here.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import importlib
+import inspect
 import sys
 from pathlib import Path
+from typing import Any
 
 from fatigue_pin.core.errors import FatiguePinError
 from fatigue_pin.core.signals import Interrupted, watch
@@ -18,8 +22,66 @@ class UsageError(FatiguePinError, ValueError):
     """A command line that does not parse (unknown command or option, bad value)."""
 
 
+# -- options whose default belongs to a settings class or a function of the package -----------------
+
+#: Where the settings the curl shortcuts set are defined ("module:owner", name): the defaults shown
+#: in the help, and the checks of a value before the study is built.
+_SOLVER = "fatigue_pin.ocp.solver:SolverOptions"
+_HORIZON = "fatigue_pin.drivers.horizon:Horizon"
+_SLIDING = "fatigue_pin.drivers.sliding:SlidingSettings"
+_CURL = "fatigue_pin.paper.curl:curl_study_dict"
+
+
+def _owner(target: str) -> Any:
+    module, name = target.split(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def owner_default(target: str, name: str | None) -> Any:
+    """The default of setting ``name`` of the settings class, or of argument ``name`` of the
+    function, ``target`` ("module:name"); with ``name`` None, the value ``target`` itself."""
+    owner = _owner(target)
+    if name is None:
+        return owner
+    if dataclasses.is_dataclass(owner):
+        from fatigue_pin.core.settings import default_of
+
+        return default_of(owner, name)
+    return inspect.signature(owner).parameters[name].default
+
+
+class _Formatter(argparse.HelpFormatter):
+    """Help texts that end with the default of the setting an option stands for, read from its
+    owner when the help is shown (so the command line holds no copy of it)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = super()._get_help_string(action)
+        source = getattr(action, "default_from", None)
+        if source is None:
+            return text
+        value = owner_default(*source)
+        shown = "none" if value is None else value
+        return f"{text} (default {shown})".replace("%", "%%")
+
+
+def _option(p: argparse.ArgumentParser, *flags: str, default_from: tuple[str, str], **kwargs: Any) -> None:
+    """An option that is None unless given: its default is the one of ``default_from``
+    (:func:`owner_default`), applied where the value is used."""
+    action = p.add_argument(*flags, default=None, **kwargs)
+    action.default_from = default_from  # type: ignore[attr-defined]
+
+
+def _given(args: argparse.Namespace, **names: str) -> dict[str, Any]:
+    """The options of ``names`` (keyword -> option attribute) that were given on the line."""
+    return {key: getattr(args, attr) for key, attr in names.items() if getattr(args, attr, None) is not None}
+
+
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit code 2), like every other error."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _Formatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):  # type: ignore[override]
         raise UsageError(f"{message} (see '{self.prog} --help')")
@@ -54,52 +116,59 @@ def _reporter():
     return Reporter.for_stream(sys.stdout)
 
 
+#: Options of the curl shortcuts checked before the study is built, by the setting each one sets.
+_CHECKED_OPTIONS = {"cycles": (_HORIZON, "cycles"), "window": (_HORIZON, "cycles"), "advance": (_SLIDING, "advance"),
+                    "max_cycles": (_SLIDING, "max_cycles"), "n_max": (_SLIDING, "max_cycles"),
+                    "max_wall_time": (_SOLVER, "max_wall_time")}
+
+
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse an option value its setting's own check refuses, naming the option."""
+    from fatigue_pin.core.settings import check_message, expected_of, field_of
+
+    for option, (target, name) in _CHECKED_OPTIONS.items():
+        value = getattr(args, option, None)
+        if value is not None:
+            owner = _owner(target)
+            f = field_of(owner, name)
+            if check_message(owner, f, value):
+                raise UsageError(f"--{option.replace('_', '-')} {value}: expected {expected_of(f)}")
+
+
 def _curl_study(args: argparse.Namespace, horizon: str):
-    """The paper's curl as a study, from the options of the ``solve`` / ``max-cycles`` shortcuts."""
+    """The paper's curl as a study, from the options of the ``solve`` / ``max-cycles`` shortcuts
+    (options not given keep the defaults of the curl and of the settings classes)."""
     from fatigue_pin.paper.curl import curl_study_dict
     from fatigue_pin.io.study import Study
 
-    for option in ("cycles", "window", "advance", "max_cycles", "n_max"):
-        value = getattr(args, option, None)
-        if value is not None and value < 1:
-            raise UsageError(f"--{option.replace('_', '-')} {value}: expected an integer number of cycles >= 1")
-    solver = {"linear_solver": args.linear_solver, "compile": not args.no_compile, "print_level": args.print_level,
-              "max_iter": args.max_iter}
-    if getattr(args, "max_wall_time", None) is not None:
-        if not args.max_wall_time > 0:
-            raise UsageError(f"--max-wall-time {args.max_wall_time}: expected seconds > 0")
-        solver["max_wall_time"] = args.max_wall_time
-    cycles = {"full": getattr(args, "cycles", None), "sliding": getattr(args, "window", None)}.get(horizon)
-    max_cycles = args.n_max if horizon == "max-cycles" else getattr(args, "max_cycles", None)
-    data = curl_study_dict(horizon, args.cost, args.preset, args.stabilization, cycles=cycles, max_cycles=max_cycles,
-                           guess=args.guess, solver=solver)
+    _check_options(args)
+    solver = _given(args, linear_solver="linear_solver", print_level="print_level", max_iter="max_iter",
+                    max_wall_time="max_wall_time")
+    if args.no_compile:
+        solver["compile"] = False
+    bound = "n_max" if horizon == "max-cycles" else "max_cycles"
+    options = _given(args, cost="cost", preset_name="preset", S="stabilization", guess="guess", max_cycles=bound)
+    if horizon in ("full", "sliding"):  # the horizon, or the window
+        options.update(_given(args, cycles="cycles" if horizon == "full" else "window"))
+    data = curl_study_dict(horizon, solver=solver, **options)
     if horizon == "sliding":
-        data["horizon"]["advance"] = args.advance
+        data["horizon"].update(_given(args, advance="advance"))
     if args.urdf is not None:
         data["model"]["urdf"] = str(args.urdf)
     return Study.from_dict(data)
 
 
 def _run(study, args: argparse.Namespace) -> int:
-    """Run a study, print its outcome in one line, and return the exit code (1: not converged)."""
+    """Run a study, print its outcome in one line, and return the exit code (1: a full horizon
+    that did not converge)."""
     from fatigue_pin.io.results import check_output
     from fatigue_pin.io.study import run_study
 
     check_output(args.out)
-    kind = study.horizon["kind"]
     result = run_study(study, args.out, name=args.name, resume=getattr(args, "resume", False), progress=_reporter(),
                        cache_dir=getattr(args, "cache", None))
-    if kind == "full":
-        ok = result.converged
-        print(f"{'converged' if ok else 'NOT CONVERGED (' + str(result.attrs['status']) + ')'}; wrote {args.out} [{result.name}]")
-        return 0 if ok else 1
-    if kind == "sliding":
-        print(f"{result.attrs['repetitions']} repetitions ({result.attrs['converged_windows']} windows converged, "
-              f"{result.attrs['wall_time_s']:.1f} s solving); wrote {args.out} [{result.name}]")
-        return 0
-    failed = ", ".join(f"{n}: {k}" for n, k in result.failures.items()) or "none"
-    print(f"maximum repetitions: {result.max_cycles} (tried N = {[r['n_cycles'] for r in result.tried]}; failed: {failed}); wrote {args.out}")
-    return 0
+    print(f"{result.outcome}; wrote {args.out}" + (f" [{result.run.name}]" if result.run is not None else ""))
+    return 0 if result.answered else 1
 
 
 def _cmd_solve(args: argparse.Namespace) -> int:
@@ -141,8 +210,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from fatigue_pin.paper.reproduce import demo
     from fatigue_pin.io.results import check_output_dir
 
-    check_output_dir(args.out)
-    demo(args.out, progress=_reporter(), max_cycles=args.max_cycles)
+    out = args.out if args.out is not None else owner_default("fatigue_pin.paper.reproduce:demo", "out")
+    check_output_dir(out)
+    demo(out, progress=_reporter(), max_cycles=args.max_cycles)
     return 0
 
 
@@ -152,8 +222,9 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs {args.jobs}: expected a number of worker processes >= 1")
-    check_output_dir(args.out)
-    reproduce(args.out, preset=args.preset, quick=args.quick, jobs=args.jobs, progress=_reporter())
+    out = args.out if args.out is not None else owner_default("fatigue_pin.paper.reproduce:reproduce", "out")
+    check_output_dir(out)
+    reproduce(out, quick=args.quick, jobs=args.jobs, progress=_reporter(), **_given(args, preset="preset"))
     return 0
 
 
@@ -196,14 +267,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     return sweep_command(args.sweep, args.out, scheduler=args.scheduler, slurm=args.slurm, workers=args.workers,
                          queue=args.queue, walltime=args.walltime, cores=args.cores, memory=args.memory,
-                         interface=args.interface, cache_dir=args.cache, retries=args.retries, progress=_say)
+                         interface=args.interface, cache_dir=args.cache, progress=_say, **_given(args, retries="retries"))
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
     from fatigue_pin.io.results import ResultFileError, list_runs, read_run
     from fatigue_pin.verify import ReferenceIntegration, VerifyTolerances, verify_run
 
-    ReferenceIntegration(args.rtol, args.atol, args.method)  # refuse bad tolerances before reading anything
+    reference = ReferenceIntegration(**_given(args, rtol="rtol", atol="atol", method="method"))  # refused before reading anything
     tol = VerifyTolerances(gap=args.gap_tol, gap_fatigue=args.gap_fatigue_tol, task=args.task_tol, coupling=args.coupling_tol,
                            bound=args.bound_tol)
     if args.all and args.run is not None:
@@ -213,8 +284,8 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         raise ResultFileError(f"{str(args.file)!r} holds no OCP run")
     failed = []
     for name in names:
-        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=args.rtol, atol=args.atol,
-                            method=args.method)
+        report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=reference.rtol,
+                            atol=reference.atol, method=reference.method)
         print(report.table(), end="\n\n" if len(names) > 1 else "\n", flush=True)
         if not report.passed:
             failed.append(name)
@@ -224,15 +295,16 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
 
 def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--cost", default="fatigue-torque", choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
-    p.add_argument("--stabilization", "-S", type=float, default=10.0, help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
-    p.add_argument("--preset", default="paper", choices=["paper", "authors-code"], help="values of the paper text or the authors' code")
-    p.add_argument("--guess", default="rest", choices=["rest", "physical"],
-                   help="initial guess: the initial state everywhere with zero torque (the paper's), or a smooth motion through the targets")
-    p.add_argument("--linear-solver", default="mumps", help="IPOPT linear solver (default mumps)")
-    p.add_argument("--max-iter", type=int, default=3000, help="IPOPT iteration limit per solve (default 3000)")
+    _option(p, "--cost", default_from=(_CURL, "cost"), choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
+    _option(p, "--stabilization", "-S", type=float, default_from=(_CURL, "S"), help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
+    _option(p, "--preset", default_from=(_CURL, "preset_name"), choices=["paper", "authors-code"],
+            help="values of the paper text or the authors' code")
+    _option(p, "--guess", default_from=(_HORIZON, "guess"), choices=["rest", "physical"],
+            help="initial guess: the initial state everywhere with zero torque (the paper's), or a smooth motion through the targets")
+    _option(p, "--linear-solver", default_from=(_SOLVER, "linear_solver"), help="IPOPT linear solver")
+    _option(p, "--max-iter", type=int, default_from=(_SOLVER, "max_iter"), help="IPOPT iteration limit per solve")
     p.add_argument("--no-compile", action="store_true", help="evaluate the NLP without generating and compiling C")
-    p.add_argument("--print-level", type=int, default=0, help="IPOPT print level")
+    _option(p, "--print-level", type=int, default_from=(_SOLVER, "print_level"), help="IPOPT print level")
     p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     _add_output_arguments(p)
 
@@ -243,14 +315,8 @@ def _add_output_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cache", type=Path, default=None, help="folder of compiled code (default ~/.cache/fatigue_pin)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="fatigue-pin",
-        description="Predictive simulation of motion with actuator fatigue (Pinocchio + 3CC-S + CasADi).",
-    )
-    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
-    sub = parser.add_subparsers(dest="command", required=True)
-
+def _add_model_commands(sub: Any) -> None:
+    """info, forward."""
     p = sub.add_parser("info", help="print the model summary: joints, masses, bounds, holding torques")
     p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     p.set_defaults(func=_cmd_info)
@@ -259,6 +325,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.set_defaults(func=_cmd_forward)
 
+
+def _add_study_commands(sub: Any) -> None:
+    """run, rerun."""
     p = sub.add_parser("run", help="run a study file (TOML): full horizon, sliding horizon or maximum-repetitions search")
     p.add_argument("study", type=Path, help="study file (.toml), or an HDF5 result file whose run stores its study")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -274,36 +343,46 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output_arguments(p)
     p.set_defaults(func=_cmd_rerun)
 
+
+def _add_curl_commands(sub: Any) -> None:
+    """solve, max-cycles: the paper's curl without a study file."""
     p = sub.add_parser("solve", help="shortcut: the paper's curl over the full horizon or window by window")
     p.add_argument("horizon", choices=["full", "sliding"])
-    p.add_argument("--cycles", type=int, default=1, help="full horizon: number of cycles")
-    p.add_argument("--window", type=int, default=3, help="sliding: cycles per window")
-    p.add_argument("--advance", type=int, default=1, help="sliding: cycles the window advances")
-    p.add_argument("--max-cycles", type=int, default=None, help="sliding: stop once this many cycles are kept")
+    _option(p, "--cycles", type=int, default_from=(_HORIZON, "cycles"), help="full horizon: number of cycles")
+    _option(p, "--window", type=int, default_from=("fatigue_pin.paper.curl:WINDOW", None), help="sliding: cycles per window")
+    _option(p, "--advance", type=int, default_from=(_SLIDING, "advance"), help="sliding: cycles the window advances")
+    _option(p, "--max-cycles", type=int, default_from=(_SLIDING, "max_cycles"), help="sliding: stop once this many cycles are kept")
     p.add_argument("--resume", action="store_true", help="sliding: continue the run stored in --out")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_solve)
 
-    p = sub.add_parser("demo", help="solve the sliding-horizon curl to exhaustion; write HDF5, figures and a replay")
-    p.add_argument("--out", type=Path, default=Path("results/demo"), help="output folder (default results/demo)")
-    p.add_argument("--max-cycles", type=int, default=None, help="stop after this many cycles (default: exhaustion)")
-    p.set_defaults(func=_cmd_demo)
-
-    p = sub.add_parser("reproduce", help="run the paper's whole study and write report.md beside the results")
-    p.add_argument("--out", type=Path, default=Path("results/reproduce"), help="output folder")
-    p.add_argument("--preset", default="paper", choices=["paper", "authors-code"])
-    p.add_argument("--quick", action="store_true", help="a subset that finishes in a few minutes")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the number of cores)")
-    p.set_defaults(func=_cmd_reproduce)
-
     p = sub.add_parser("max-cycles", help="shortcut: largest number of cycles the curl's full-horizon OCP converges for")
-    p.add_argument("--n-max", type=int, default=None,
-                   help="largest N tried (default: no cap; gallop N = 1, 2, 4, ... until a failure, then bisect)")
-    p.add_argument("--max-wall-time", type=float, default=None, help="wall-time limit of one solve, s (default: none)")
+    _option(p, "--n-max", type=int, default_from=(_SLIDING, "max_cycles"),
+            help="largest N tried; without it, gallop N = 1, 2, 4, ... until a failure, then bisect")
+    _option(p, "--max-wall-time", type=float, default_from=(_SOLVER, "max_wall_time"), help="wall-time limit of one solve, s")
     p.add_argument("--resume", action="store_true", help="continue the search stored in --out")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_max_cycles)
 
+
+def _add_paper_commands(sub: Any) -> None:
+    """demo, reproduce."""
+    p = sub.add_parser("demo", help="solve the sliding-horizon curl to exhaustion; write HDF5, figures and a replay")
+    _option(p, "--out", type=Path, default_from=("fatigue_pin.paper.reproduce:demo", "out"), help="output folder")
+    p.add_argument("--max-cycles", type=int, default=None, help="stop after this many cycles (default: exhaustion)")
+    p.set_defaults(func=_cmd_demo)
+
+    p = sub.add_parser("reproduce", help="run the paper's whole study and write report.md beside the results")
+    _option(p, "--out", type=Path, default_from=("fatigue_pin.paper.reproduce:reproduce", "out"), help="output folder")
+    _option(p, "--preset", default_from=("fatigue_pin.paper.reproduce:reproduce", "preset"), choices=["paper", "authors-code"],
+            help="values of the paper text or the authors' code")
+    p.add_argument("--quick", action="store_true", help="a subset that finishes in a few minutes")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the number of cores)")
+    p.set_defaults(func=_cmd_reproduce)
+
+
+def _add_result_commands(sub: Any) -> None:
+    """replay, plot."""
     p = sub.add_parser("replay", help="replay a run in the browser (meshcat, local only) or write it as one HTML file")
     p.add_argument("file", type=Path, help="HDF5 result file")
     p.add_argument("--run", default=None, help="run name in the file (needed when it holds several)")
@@ -317,6 +396,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.set_defaults(func=_cmd_plot)
 
+
+def _add_sweep_command(sub: Any) -> None:
     p = sub.add_parser("sweep", help="run every study of a sweep file (grid / cases over a base study) on Dask; "
                                      "one result file per study, summary.csv and summary.h5; rerun to resume")
     p.add_argument("sweep", type=Path, help="sweep file (.toml), docs/sweeps.md")
@@ -331,22 +412,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--memory", default=None, help="--slurm: memory per SLURM job (default 4GB)")
     p.add_argument("--interface", default=None, help="--slurm: network interface the scheduler listens on (e.g. ib0)")
     p.add_argument("--cache", type=Path, default=None, help="folder of compiled code for every job (default ~/.cache/fatigue_pin)")
-    p.add_argument("--retries", type=int, default=2, help="Dask retries of a job that raised a file system error (default 2)")
+    _option(p, "--retries", type=int, default_from=("fatigue_pin.sweep.jobs:sweep_command", "retries"),
+            help="Dask retries of a job that raised a file system error")
     p.set_defaults(func=_cmd_sweep)
 
-    from fatigue_pin.verify.report import DEFAULT_ATOL, DEFAULT_RTOL, METHODS, VerifyTolerances
+
+
+def _add_verify_command(sub: Any) -> None:
+    from fatigue_pin.verify.report import METHODS, VerifyTolerances
 
     tol = VerifyTolerances()
+    run = "fatigue_pin.verify.report:ReferenceIntegration"
     p = sub.add_parser("verify", help="check a stored run independently (solve_ivp + pinocchio.aba): gaps, task, coupling, bounds, "
                                       "invariant; exit 1 when a check fails")
     p.add_argument("file", type=Path, help="HDF5 result file")
     p.add_argument("run", nargs="?", default=None, help="run name (needed when the file holds several)")
     p.add_argument("--all", action="store_true", help="verify every run of the file")
     p.add_argument("--single-shooting", action="store_true", help="also integrate the stored controls over the whole horizon")
-    p.add_argument("--rtol", type=float, default=DEFAULT_RTOL, help=f"solve_ivp rtol (default {DEFAULT_RTOL:g})")
-    p.add_argument("--atol", type=float, default=DEFAULT_ATOL, help=f"solve_ivp atol (default {DEFAULT_ATOL:g})")
-    p.add_argument("--method", default="DOP853", choices=list(METHODS),
-                   help="solve_ivp method (default DOP853; the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
+    _option(p, "--rtol", type=float, default_from=(run, "rtol"), help="solve_ivp rtol")
+    _option(p, "--atol", type=float, default_from=(run, "atol"), help="solve_ivp atol")
+    _option(p, "--method", default_from=(run, "method"), choices=list(METHODS),
+            help="solve_ivp method (the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
     p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
     p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")
     p.add_argument("--task-tol", type=float, default=tol.task, help=f"task targets, ranges, initial state (default {tol.task:g})")
@@ -354,6 +440,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bound-tol", type=float, default=tol.bound, help=f"q, qdot, torques, fatigue states (default {tol.bound:g})")
     p.set_defaults(func=_cmd_verify)
 
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``fatigue-pin`` parser: one sub-command per task, each calling one function of the package."""
+    parser = _Parser(
+        prog="fatigue-pin",
+        description="Predictive simulation of motion with actuator fatigue (Pinocchio + 3CC-S + CasADi).",
+    )
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in (_add_model_commands, _add_study_commands, _add_curl_commands, _add_paper_commands, _add_result_commands,
+                _add_sweep_command, _add_verify_command):
+        add(sub)
     from fatigue_pin.cli.fatigue import register as register_fatigue_commands
 
     register_fatigue_commands(sub)  # endurance, calibrate

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError, ResultFileError
+from fatigue_pin.core.settings import check_fields, is_int, is_number, setting
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.core.signals import Interrupted, signal_name
 from fatigue_pin.drivers.full import OcpBuilder
@@ -44,9 +45,9 @@ class SlidingSettings:
 
     Attributes:
         window: cycles per window (K, paper: 3).
-        advance: cycles the window advances (A, paper: 1); 1 <= A < K.
-        max_cycles: stop once this many cycles are kept (``None``: until a window fails).
-        end_tolerance: end bounds of q and qdot, fraction of their range (paper: 0.01).
+        advance: cycles the window advances (A, paper: 1); 1 <= A <= K.
+        max_cycles: stop once this many cycles are kept (``None``: until a window fails); at least K.
+        end_tolerance: end bounds of q and qdot, fraction of their range in [0, 1) (paper: 0.01).
         failure_iterations: IPOPT iteration limit of a window after the first ``warmup`` windows,
             as a multiple of the median iterations of the converged windows so far (a failing
             window is then recognised within about this factor of a normal window's cost).
@@ -59,26 +60,22 @@ class SlidingSettings:
             code does: the guess jumps back at every cycle boundary).
     """
 
-    window: int = 3
-    advance: int = 1
-    max_cycles: int | None = None
-    end_tolerance: float = 0.01
-    failure_iterations: float | None = 10.0
-    min_iterations: int = 200
-    warmup: int = 3
-    guess_fatigue: str = "integrate"
+    window: int = setting(3, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    advance: int = setting(1, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    max_cycles: int | None = setting(None, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    end_tolerance: float = setting(0.01, "a fraction in [0, 1) of the joint ranges", lambda v: is_number(v) and 0 <= v < 1)
+    failure_iterations: float | None = setting(10.0, "a multiple of the median window iterations >= 1",
+                                               lambda v: is_number(v) and v >= 1)
+    min_iterations: int = setting(200, "an integer >= 0", lambda v: is_int(v) and v >= 0)
+    warmup: int = setting(3, "an integer >= 0", lambda v: is_int(v) and v >= 0)
+    guess_fatigue: str = setting("integrate", "'integrate' or 'copy'", lambda v: v in ("integrate", "copy"))
 
     def __post_init__(self) -> None:
-        if self.guess_fatigue not in ("integrate", "copy"):
-            raise ParameterError(f"SlidingSettings.guess_fatigue = {self.guess_fatigue!r}: expected 'integrate' or 'copy'")
-        if not (isinstance(self.window, int) and self.window >= 1):
-            raise ParameterError(f"SlidingSettings.window = {self.window!r}: expected an integer number of cycles >= 1")
-        if not (isinstance(self.advance, int) and 1 <= self.advance <= self.window):
+        check_fields(self)
+        if self.advance > self.window:
             raise ParameterError(f"SlidingSettings.advance = {self.advance!r}: expected an integer in [1, window = {self.window}]")
         if self.max_cycles is not None and self.max_cycles < self.window:
-            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected None or >= window = {self.window}")
-        if self.failure_iterations is not None and self.failure_iterations < 1:
-            raise ParameterError(f"SlidingSettings.failure_iterations = {self.failure_iterations!r}: expected None or >= 1")
+            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected at least the window, window = {self.window}")
 
 
 @dataclass

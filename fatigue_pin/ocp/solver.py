@@ -23,7 +23,7 @@ import os
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -31,6 +31,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, is_str, is_strs, setting
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.core.signals import watch
 from fatigue_pin.core.streams import captured
@@ -128,50 +129,26 @@ class SolverOptions:
             Not used in ``nlp`` mode.
     """
 
-    linear_solver: str = "mumps"
-    tol: float = 1e-6
-    constr_viol_tol: float = 1e-4
-    max_iter: int = 3000
-    max_wall_time: float | None = None
-    print_level: int = 0
-    compile: bool = True
-    compiler: str = "gcc"
-    compiler_flags: tuple[str, ...] = ("-O3", "-march=native")
-    cache_dir: Path | None = None
-    mu_init: float = 1.0
-    perturb_dec_fact: float = 0.6
-    ipopt: dict[str, Any] = field(default_factory=dict)
-    compile_mode: str = "library"
-    compile_jobs: int | None = None
-    accept_acceptable: bool = False
-    derivative_blocks: bool | None = None
+    linear_solver: str = setting("mumps", "an IPOPT linear solver name (e.g. 'mumps')", is_str)
+    tol: float = setting(1e-6, "a tolerance > 0", lambda v: is_number(v) and v > 0)
+    constr_viol_tol: float = setting(1e-4, "a tolerance > 0", lambda v: is_number(v) and v > 0)
+    max_iter: int = setting(3000, "an integer >= 0", lambda v: int(v) == v and v >= 0)
+    max_wall_time: float | None = setting(None, "seconds > 0", lambda v: is_number(v) and v > 0)
+    print_level: int = setting(0, "an integer 0..12", lambda v: is_int(v) and 0 <= v <= 12)
+    compile: bool = setting(True, "true or false", is_bool)
+    compiler: str = setting("gcc", "a C compiler command", is_str)
+    compiler_flags: tuple[str, ...] = setting(("-O3", "-march=native"), "a list of strings", is_strs)
+    cache_dir: Path | None = setting(None, "a folder", study=False)
+    mu_init: float = setting(1.0, "a barrier parameter > 0", lambda v: is_number(v) and v > 0)
+    perturb_dec_fact: float = setting(0.6, "a factor in (0, 1)", lambda v: is_number(v) and 0 < v < 1)
+    ipopt: dict[str, Any] = setting(default_factory=dict, expected="a table of IPOPT options", check=lambda v: isinstance(v, dict))
+    compile_mode: str = setting("library", "'library' (once per model) or 'nlp' (once per horizon)", lambda v: v in COMPILE_MODES)
+    compile_jobs: int | None = setting(None, "a number of compiler processes >= 1", lambda v: is_int(v) and v >= 1)
+    accept_acceptable: bool = setting(False, "true or false", is_bool)
+    derivative_blocks: bool | None = setting(None, "true or false (none: in library mode)", is_bool)
 
     def __post_init__(self) -> None:
-        if self.compile_mode not in COMPILE_MODES:
-            raise ParameterError(f"SolverOptions.compile_mode = {self.compile_mode!r}: expected one of {list(COMPILE_MODES)}")
-        if self.compile_jobs is not None and (isinstance(self.compile_jobs, bool) or not isinstance(self.compile_jobs, int)
-                                              or self.compile_jobs < 1):
-            raise ParameterError(f"SolverOptions.compile_jobs = {self.compile_jobs!r}: expected None or an integer >= 1")
-        def number(value: object) -> bool:
-            return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)) and bool(np.isfinite(value))
-
-        for name in ("tol", "constr_viol_tol"):
-            value = getattr(self, name)
-            if not (number(value) and value > 0):
-                raise ParameterError(f"SolverOptions.{name} = {value!r}: expected a finite tolerance > 0")
-        if not number(self.max_iter) or int(self.max_iter) != self.max_iter or self.max_iter < 0:
-            raise ParameterError(f"SolverOptions.max_iter = {self.max_iter!r}: expected an integer >= 0")
-        if not (number(self.mu_init) and self.mu_init > 0):
-            raise ParameterError(f"SolverOptions.mu_init = {self.mu_init!r}: expected a barrier parameter > 0")
-        if not (number(self.perturb_dec_fact) and 0 < self.perturb_dec_fact < 1):
-            raise ParameterError(f"SolverOptions.perturb_dec_fact = {self.perturb_dec_fact!r}: expected a factor in (0, 1)")
-        if self.max_wall_time is not None and not (number(self.max_wall_time) and self.max_wall_time > 0):
-            raise ParameterError(f"SolverOptions.max_wall_time = {self.max_wall_time!r}: expected seconds > 0 or None")
-        if isinstance(self.print_level, bool) or not isinstance(self.print_level, (int, np.integer)) or not 0 <= self.print_level <= 12:
-            raise ParameterError(f"SolverOptions.print_level = {self.print_level!r}: expected an integer in [0, 12]")
-        if not isinstance(self.linear_solver, str) or not isinstance(self.ipopt, dict):
-            raise ParameterError(f"SolverOptions.linear_solver = {self.linear_solver!r}, ipopt = {self.ipopt!r}: expected a name "
-                                 "and a table of IPOPT options")
+        check_fields(self)
 
     @property
     def library_mode(self) -> bool:

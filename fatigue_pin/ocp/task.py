@@ -80,7 +80,7 @@ class JointTarget:
         object.__setattr__(self, "at", _phase(owner, self.at))
         tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0")
         if tol < 0:
-            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a finite tolerance >= 0")
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a tolerance >= 0")
         object.__setattr__(self, "tolerance", tol)
 
 
@@ -192,7 +192,7 @@ class FrameTarget:
         object.__setattr__(self, "at", _phase(owner, self.at))
         tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0 (m)")
         if tol < 0:
-            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a finite tolerance >= 0 (m)")
+            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a tolerance >= 0 (m)")
         object.__setattr__(self, "tolerance", tol)
         if self.shape not in FRAME_TARGET_SHAPES:
             raise TaskError(f"{owner}.shape = {self.shape!r}: expected one of {list(FRAME_TARGET_SHAPES)}")

@@ -40,6 +40,7 @@ from fatigue_pin.ocp.blocks import BlockPair, MappedCall, block_functions, diffe
 from fatigue_pin.ocp.costs import IntervalVariables
 from fatigue_pin.ocp.guesses import GUESSES, initial_guess
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.settings import check_fields, is_bool, is_int, setting
 from fatigue_pin.ocp.problem import Problem, StateLayout
 from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solver import NlpResult, NlpSolver, SolverOptions, simple_bounds
@@ -77,24 +78,16 @@ class Transcription:
             code does it). Same feasible set, other KKT systems: for comparisons.
     """
 
-    substeps: int = 5
-    integrator: str = "rk4"
-    scaling: bool = True
-    parallel: str = "auto"
-    expand: bool = False
-    torque_variable: bool = True
-    target_rows: bool = False
+    substeps: int = setting(5, f"an integer in [1, {MAX_SUBSTEPS}]", lambda v: is_int(v) and 1 <= v <= MAX_SUBSTEPS)
+    integrator: str = setting("rk4", f"one of {list(INTEGRATORS)}", lambda v: v in INTEGRATORS)
+    scaling: bool = setting(True, "true or false", is_bool)
+    parallel: str = setting("auto", f"one of {list(MAP_MODES)}", lambda v: v in MAP_MODES)
+    expand: bool = setting(False, "true or false", is_bool)
+    torque_variable: bool = setting(True, "true or false", is_bool)
+    target_rows: bool = setting(False, "true or false", is_bool)
 
     def __post_init__(self) -> None:
-        if isinstance(self.substeps, bool) or not isinstance(self.substeps, (int, np.integer)) or not 1 <= self.substeps <= MAX_SUBSTEPS:
-            raise ParameterError(f"Transcription.substeps = {self.substeps!r}: expected an integer in [1, {MAX_SUBSTEPS}]")
-        if self.integrator not in INTEGRATORS:
-            raise ParameterError(f"Transcription.integrator = {self.integrator!r}: expected one of {list(INTEGRATORS)}")
-        if self.parallel not in MAP_MODES:
-            raise ParameterError(f"Transcription.parallel = {self.parallel!r}: expected one of {list(MAP_MODES)}")
-        for name in ("scaling", "expand", "torque_variable", "target_rows"):
-            if not isinstance(getattr(self, name), bool):
-                raise ParameterError(f"Transcription.{name} = {getattr(self, name)!r}: expected true or false")
+        check_fields(self)
 
     def map_mode(self, compiled: bool) -> str:
         if self.parallel == "auto":

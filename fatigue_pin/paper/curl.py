@@ -32,6 +32,8 @@ PENALISED_JOINTS = ("shoulder",)
 CYCLE_DURATION = 1.0
 INTERVALS_PER_CYCLE = 50
 SUBSTEPS = 5
+#: The sliding horizon's window K (cycles).
+WINDOW = 3
 
 
 @dataclass(frozen=True)
@@ -115,7 +117,7 @@ def curl_study_dict(
         cost: ``fatigue-torque``, ``fatigue`` or ``torque`` (:data:`COSTS`).
         preset_name: ``paper`` or ``authors-code`` (:data:`PRESETS`).
         S: stabiliser of every half (1/s).
-        cycles: the full horizon, or the window (default 1 / 3).
+        cycles: the full horizon (default: the horizon's, 1), or the window (default :data:`WINDOW`).
         max_cycles: sliding: stop after; max-cycles: search bound.
         guess, solver, transcription: optional settings of those tables.
         intervals_per_cycle, substeps: the discretisation (the paper's 50 and 5; tests use less).
@@ -130,9 +132,9 @@ def curl_study_dict(
     }
     horizon_table: dict = {"kind": horizon, "guess": guess}
     if horizon == "sliding":
-        horizon_table.update(cycles=cycles or 3, advance=1, end_tolerance=0.01)
-    elif horizon == "full":
-        horizon_table.update(cycles=cycles or 1)
+        horizon_table.update(cycles=cycles or WINDOW, advance=1, end_tolerance=0.01)
+    elif horizon == "full" and cycles is not None:
+        horizon_table.update(cycles=cycles)
     if max_cycles is not None:
         horizon_table["max_cycles"] = max_cycles
     params = ocp_params(preset_name, S)

@@ -59,14 +59,8 @@ def _run_job(job: Job) -> dict[str, object]:
 
     t0 = time.perf_counter()
     result = run_study(job.study(), job.out)
-    if job.horizon == "full":
-        reps = result.max_cycles
-        solve = float(sum(r["wall_time_s"] for r in result.tried))
-    else:
-        reps = int(result.attrs["repetitions"])
-        solve = float(result.attrs["wall_time_s"])
-    return {"label": job.label, "horizon": job.horizon, "cost": job.cost, "S": job.S, "repetitions": reps,
-            "solve_time_s": solve, "elapsed_s": time.perf_counter() - t0, "file": str(job.out)}
+    return {"label": job.label, "horizon": job.horizon, "cost": job.cost, "S": job.S, "repetitions": result.repetitions,
+            "solve_time_s": result.solve_time_s, "elapsed_s": time.perf_counter() - t0, "file": str(job.out)}
 
 
 def _figures_and_replays(files: list[Path], out: Path, progress: Progress) -> list[Path]:
@@ -109,12 +103,12 @@ def demo(out: str | Path = "results/demo", progress: Progress = print, max_cycle
     model = study.model()
     progress(model.summary())
     progress("building the 3-cycle window OCP (compiled once per machine, then cached) ...")
-    run = run_study(study, h5, progress=progress)
-    progress(f"{run.attrs['repetitions']} repetitions; {run.attrs['wall_time_s']:.1f} s of solving")
+    result = run_study(study, h5, progress=progress)
+    progress(f"{result.repetitions} repetitions; {result.solve_time_s:.1f} s of solving")
     figures = out / "figures"
     for path in plot_file(h5, figures):
         progress(f"figure: {path}")
-    html = export_html(run, out / "replay.html")
+    html = export_html(result.run, out / "replay.html")
     progress(f"replay (open in a browser): {html}")
     progress(f"results: {h5}")
     return {"h5": h5, "figures": figures, "replay": html}

@@ -18,6 +18,7 @@ import pinocchio as pin
 from fatigue_pin.robot.dynamics import casadi_dynamics
 from fatigue_pin.robot.urdf import check_urdf_text, quiet_stderr
 from fatigue_pin.core.errors import DimensionError, ModelError
+from fatigue_pin.core.settings import check_fields, setting
 
 #: Joint model short names Pinocchio uses for one-DoF revolute and prismatic joints.
 _SUPPORTED_JOINTS = (
@@ -304,6 +305,36 @@ def resolve_model(name: str | Path | None = None, gravity: object = None, payloa
             f"model {text!r} is not a bundled model (arm26), an example-robot-data name {sorted(EXAMPLE_ROBOTS)} or an existing URDF path"
         )
     return load_model(path, g, payload)
+
+
+
+def _is_vector3(v: object) -> bool:
+    a = np.asarray(v, dtype=float).reshape(-1)
+    return a.size == 3 and bool(np.all(np.isfinite(a)))
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """Which model a study runs on (its ``[model]`` table): :meth:`load` gives the RobotModel.
+
+    Attributes:
+        urdf: a bundled model (``arm26``), an example-robot-data name (``ur5``, ``panda``) or the
+            path of a URDF file (:func:`resolve_model`).
+        gravity: gravity (3,) in the world frame, m/s^2; None: (0, 0, -9.81).
+        payload: a rigid load fixed to a frame (:class:`Payload`), part of the dynamics; None: none.
+    """
+
+    urdf: str = setting(expected="a bundled model name, an example-robot-data name or a URDF path",
+                        check=lambda v: isinstance(v, (str, Path)) and str(v) != "")
+    gravity: tuple[float, float, float] | None = setting(None, "3 finite numbers (m/s^2, world frame)", _is_vector3)
+    payload: Payload | None = setting(None, "a table { frame, mass (kg), com (m), inertia (kg m^2) }",
+                                      lambda v: isinstance(v, Payload))
+
+    def __post_init__(self) -> None:
+        check_fields(self, ModelError)
+
+    def load(self) -> RobotModel:
+        return resolve_model(self.urdf, gravity=self.gravity, payload=self.payload)
 
 
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None) -> RobotModel:

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from fatigue_pin.io.study import Study
+from fatigue_pin.io.study import Study, StudyResult
 from fatigue_pin.sweep.summary import SUMMARY_FORMAT
 
 # -- one job on a worker -----------------------------------------------------------------------------
@@ -22,24 +22,10 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def _summarise(study: Study, result: Any) -> dict[str, Any]:
+def _summarise(result: StudyResult) -> dict[str, Any]:
     """Status, repetitions, objective, iterations and run name of a finished run_study."""
-    kind = study.horizon["kind"]
-    if kind == "max-cycles":
-        run = result.run
-        return {"status": "converged" if result.max_cycles > 0 else "not converged", "repetitions": int(result.max_cycles),
-                "objective": float(run.attrs.get("objective", math.nan)) if run is not None else math.nan,
-                "iterations": int(sum(int(r["iterations"]) for r in result.tried)),
-                "run": run.name if run is not None else ""}
-    attrs = result.attrs
-    if kind == "sliding":
-        reps = int(attrs["repetitions"])
-        objective = float(result.cycle_costs.sum()) if result.cycle_costs.size else math.nan
-    else:
-        reps = int(result.n_cycles)
-        objective = float(attrs.get("objective", math.nan))
-    return {"status": "converged" if result.converged else "not converged", "repetitions": reps, "objective": objective,
-            "iterations": int(attrs.get("iterations", -1)), "run": result.name}
+    return {"status": "converged" if result.converged else "not converged", "repetitions": result.repetitions,
+            "objective": result.objective, "iterations": result.iterations, "run": result.run.name if result.run is not None else ""}
 
 
 def partial_path(out_dir: Path, job_id: str) -> Path:
@@ -142,7 +128,7 @@ def run_job(text: str, job_id: str, out_dir: str, cache_dir: str | None = None) 
                 raise
             _remove_leftovers(out, job_id)  # a partial file that cannot be resumed: start again
             result = run_study(study, part, cache_dir=cache_dir)
-        row.update(_summarise(study, result))
+        row.update(_summarise(result))
         row["wall_time_s"] = time.perf_counter() - t0
         if not part.exists():
             h5py.File(part, "w").close()

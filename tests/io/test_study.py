@@ -198,3 +198,27 @@ def test_run_names_the_run_of_a_result_file_whose_study_to_use(tmp_path, capsys)
     toml.write_text(small_curl("full").to_toml())
     with pytest.raises(StudyError, match="is a study file, not an HDF5 result file"):
         Study.from_file(toml, "full/a")
+
+
+def test_run_study_returns_one_result_type_for_every_horizon_kind(tmp_path):
+    """Full, sliding and max-cycles all give a StudyResult: the run, the repetitions, whether it
+    converged, the search table when there is one, and a one-line outcome."""
+    from fatigue_pin.io.results import list_runs
+    from fatigue_pin.io.study import StudyResult, run_study
+
+    files = {kind: tmp_path / f"{kind}.h5" for kind in ("full", "sliding", "max-cycles")}
+    full = run_study(small_curl("full", cycles=1), files["full"])
+    sliding = run_study(small_curl("sliding", max_cycles=3), files["sliding"])
+    search = run_study(small_curl("max-cycles", max_cycles=2), files["max-cycles"])
+    for result in (full, sliding, search):
+        assert isinstance(result, StudyResult) and result.converged and result.answered
+        assert result.run.name in list_runs(files[result.kind])
+    assert (full.kind, full.repetitions, full.search) == ("full", 1, None)
+    assert full.iterations == full.run.attrs["iterations"] and full.objective == full.run.attrs["objective"]
+    assert full.outcome == "converged"
+    assert (sliding.kind, sliding.repetitions, sliding.search) == ("sliding", 3, None)
+    assert sliding.repetitions == sliding.run.attrs["repetitions"] == sliding.run.n_cycles
+    assert sliding.outcome.startswith("3 repetitions (1 windows converged")
+    assert search.kind == "max-cycles" and search.repetitions == search.search.max_cycles == 2 == search.run.n_cycles
+    assert search.iterations == sum(r["iterations"] for r in search.search.tried)
+    assert search.outcome.startswith("maximum repetitions: 2 (tried N = [1, 2]; failed: none)")

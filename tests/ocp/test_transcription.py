@@ -258,7 +258,7 @@ def test_the_curl_with_michauds_model_converges(tmp_path):
         "fatigue": {"model": "michaud", "LD": 10.0, "LR": 10.0, "F": 0.456, "R": 0.0094, "effort_threshold": 0.2,
                     "effort_factor": 0.1, "stabilization_factor": 10.0},
     })
-    run = run_study(study, tmp_path / "michaud.h5")
+    run = run_study(study, tmp_path / "michaud.h5").run
     assert run.converged
     assert run.fatigue_states == ("ma", "mr", "mf", "E")
     assert run.fatigue["E"].max() > 1e-4  # effort builds up above the threshold

@@ -33,7 +33,7 @@ def full_file(tmp_path_factory):
     """One full-horizon cycle on the paper's grid (50 intervals, 5 substeps)."""
     out = tmp_path_factory.mktemp("verify") / "full.h5"
     study = curl_study("full", cycles=1, intervals_per_cycle=50, substeps=5, solver={"compile": False})
-    run = run_study(study, out)
+    run = run_study(study, out).run
     assert run.converged
     return out, run.name
 
@@ -43,7 +43,7 @@ def sliding_file(tmp_path_factory):
     """Sliding horizon, windows of 2 cycles advancing 1, 3 cycles kept: 2 windows, one join."""
     out = tmp_path_factory.mktemp("verify") / "sliding.h5"
     study = curl_study("sliding", cycles=2, max_cycles=3, intervals_per_cycle=10, substeps=8, solver={"compile": False})
-    run = run_study(study, out)
+    run = run_study(study, out).run
     assert run.windows.shape == (2,) and run.windows["converged"].all()
     return out, run.name
 
@@ -207,7 +207,7 @@ def test_coarse_grid_fails_and_says_why():
     """On the conftest's grid (2 substeps of 0.05 s) the optimiser whips the elbow to its velocity
     bound in the last interval, where RK4 is off by rad/s: verify fails on the gap and says that
     the nodes do solve their own discretisation."""
-    run = run_study(small_curl("full", cycles=1))
+    run = run_study(small_curl("full", cycles=1)).run
     r = verify_run(run)
     assert not r.passed and "gap qdot" in [c.name for c in r.failures]
     assert r.rk4_residual < 1e-6 and r.rk4_truncation == pytest.approx(r.gap_qdot, rel=1e-6)

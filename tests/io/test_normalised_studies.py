@@ -1,0 +1,59 @@
+"""The study tables taken from the settings classes read every shipped study as the hand-written
+schema did: tests/io/normalised_studies.json holds, for every study of studies/, every job of its
+sweep and every paper curl study of ``curl_study_dict``, the input and the normalised form and
+TOML text computed by the code before the rework (commit 5bbba9f, io/study.py's SCHEMA)."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from fatigue_pin.io.study import Study, normalise, to_toml
+from fatigue_pin.io.tables import key_tables
+
+FIXTURE = json.loads((Path(__file__).with_name("normalised_studies.json")).read_text())
+
+
+def _new_keys_at_default(new: dict, old: dict) -> dict:
+    """``new`` without the keys the old schema did not have, each checked to be at its class's
+    default (a setting added since reads every old study as before)."""
+    tables = key_tables()
+    out = {}
+    for section, values in new.items():
+        if not isinstance(values, dict) or section not in old or section not in tables:
+            out[section] = values
+            continue
+        kept = {}
+        for key, value in values.items():
+            if key in old[section]:
+                kept[key] = value
+            else:
+                assert value == tables[section][key].default, f"{section}.{key} = {value!r} in a study that did not set it"
+        out[section] = kept
+    return out
+
+
+def test_the_fixture_covers_every_shipped_study():
+    shipped = {p.name for p in (Path(__file__).resolve().parents[2] / "studies").glob("*.toml")}
+    assert shipped <= {name.split("#")[0] for name in FIXTURE}
+    assert len(FIXTURE) == 47
+
+
+@pytest.mark.parametrize("name", sorted(FIXTURE))
+def test_every_study_normalises_to_the_same_values(name):
+    case = FIXTURE[name]
+    new = normalise(case["input"])
+    assert _new_keys_at_default(new, case["normalised"]) == case["normalised"]
+    old_text = tomllib.loads(case["toml"])
+    assert _new_keys_at_default(tomllib.loads(to_toml(new)), old_text) == old_text
+    assert Study.from_toml(case["toml"]).data == new  # a study stored by the old code reads the same
+
+
+def test_the_comparison_sees_a_changed_default():
+    case = FIXTURE["curl_full_fatigue_paper.toml"]
+    changed = json.loads(json.dumps(case["input"]))
+    changed.setdefault("solver", {})["tol"] = 1e-7
+    assert _new_keys_at_default(normalise(changed), case["normalised"]) != case["normalised"]
