@@ -282,7 +282,7 @@ CASES: list[Case] = [
          _run(lambda e: e.study(_set("model", "urdf", e.urdf(_zero_mass, "massless.urdf"))))),
     Case("urdf-is-folder", URDF, "a URDF path that is a folder", r"URDF path '.*' is a folder; expected the path of a .urdf file",
          lambda e: ["info", "--urdf", str(e.tmp)]),
-    Case("urdf-empty-path", URDF, "`run --set model.urdf=` (empty)", r"model '' is empty; expected a bundled model",
+    Case("urdf-empty-path", URDF, "`run --set model.urdf=` (empty)", r"model.urdf = '': expected a bundled model name",
          lambda e: ["run", e.study(), "--set", "model.urdf=", "--out", str(e.existing)]),
     Case("urdf-negative-mass", URDF, "a link of negative mass", r"link 'humerus' has mass -1.86457; expected a mass >= 0",
          lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('<mass value="1.864572"/>', '<mass value="-1.864572"/>'))]),
