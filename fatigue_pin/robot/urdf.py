@@ -13,8 +13,6 @@ kind of bad input the parser would reject or that fatigue_pin cannot model:
 * a lower position limit above the upper one, an effort limit <= 0, a velocity limit < 0, a
   zero joint axis;
 * a ``<mass>`` without its value, an ``<inertia>`` without one of its six entries;
-* (:func:`check_mimic_joints`) a ``<mimic>`` joint that is not locked (its motion is tied to
-  another joint's; loaded as it is, it would be an independent actuated joint);
 * a link of negative mass or with negative principal moments on the diagonal of its inertia.
 
 :func:`quiet_stderr` silences the parser's own lines for what remains and keeps them for the
@@ -30,7 +28,7 @@ from pathlib import Path
 from fatigue_pin.core.errors import ModelError
 from fatigue_pin.core.streams import captured
 
-__all__ = ["check_urdf_text", "check_mimic_joints", "quiet_stderr"]
+__all__ = ["check_urdf_text", "quiet_stderr"]
 
 #: Attributes holding numbers: element tag -> {attribute: count of numbers}.
 _NUMBERS = {
@@ -131,12 +129,9 @@ def _check_link(path: Path, link: ET.Element) -> None:
                                  "expected moments of inertia >= 0 (kg m^2) in its <inertia>")
 
 
-def check_urdf_text(path: Path) -> dict[str, str]:
+def check_urdf_text(path: Path) -> None:
     """Refuse, with one line naming the element and the value, a URDF that the URDF parser would
     reject or that fatigue_pin cannot model (see the module docstring).
-
-    Returns:
-        The mimic joints: follower name -> the joint it mimics (:func:`check_mimic_joints`).
 
     Raises:
         ModelError: the first problem found.
@@ -158,25 +153,6 @@ def check_urdf_text(path: Path) -> dict[str, str]:
         _check_link(path, link)
     for joint in joints:
         _check_joint(path, joint, names)
-    return {j.get("name"): j.find("mimic").get("joint") for j in joints if j.find("mimic") is not None}
-
-
-def check_mimic_joints(mimics: dict[str, str], locked: object, path: Path) -> None:
-    """Refuse a mimic joint that is not locked: its motion is tied to another joint's, which the
-    dynamics (Pinocchio's ABA) and the problem cannot express, and loading it as an independent
-    actuated joint would give it its own motion, torque and fatigue.
-
-    Args:
-        mimics: follower -> mimicked joint (from :func:`check_urdf_text`).
-        locked: the names of the locked joints (a container).
-    """
-    free = [name for name in mimics if name not in locked]
-    if free:
-        name = free[0]
-        raise ModelError(
-            f"{path}: joint {name!r} mimics joint {mimics[name]!r} (<mimic>); a mimic joint cannot move on its own: "
-            f"expected it locked (model.locked_joints = {{ {name} = <position> }}) or the <mimic> removed"
-        )
 
 
 def quiet_stderr():
