@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.paper.curl import COSTS, PAPER_REPETITIONS, PRESETS, Q_INIT, curl_study
+from fatigue_pin.paper.curl import COSTS, PAPER_REPETITIONS, Q_INIT, VARIANTS, curl_study
 from fatigue_pin.viz.plots import plot_capacity
 from fatigue_pin.io.study import run_study
 
@@ -33,7 +33,7 @@ from fatigue_pin.io.study import run_study
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("results/max_repetitions"), help="output directory")
-    parser.add_argument("--preset", default="authors-code", choices=list(PRESETS))
+    parser.add_argument("--preset", default="authors-code", choices=list(VARIANTS))
     parser.add_argument("--n-max", type=int, default=None, help="largest N tried (default: no cap)")
     parser.add_argument("--costs", nargs="+", default=list(COSTS), choices=list(COSTS))
     parser.add_argument("--stabilization", type=float, nargs="+", default=[10.0, 0.0])

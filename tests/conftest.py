@@ -105,3 +105,11 @@ def make_curl_run(name: str = "full/fatigue_torque", n_cycles: int = 2, n: int =
         actuator_names=HALVES, cost_terms=TERMS, cycle_wall_time_s=np.full(n_cycles, 6.0), windows=windows,
         urdf=urdf, fatigued=mf,
     )
+
+
+def small_mpc_study(tables: str = "", seed: int | None = None, max_cycles: int = 3) -> str:
+    """TOML text of the small curl (10 intervals per cycle, 2 RK4 substeps, uncompiled) as a
+    closed-loop study with a 3-cycle window; ``tables`` adds [plant...] and [mpc] tables."""
+    study = small_curl("sliding", max_cycles=max_cycles)
+    top = "" if seed is None else f"seed = {seed}\n"
+    return f"{top}{study.to_toml()}\n{tables}\n"

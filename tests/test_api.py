@@ -53,3 +53,13 @@ def test_unknown_names_are_an_attribute_error():
         assert re.search("no_such_name", str(exc))
     else:
         raise AssertionError("no AttributeError")
+
+
+def test_import_is_lazy():
+    """``import fatigue_pin`` loads no public name (nor CasADi) until one is used."""
+    import subprocess
+    import sys
+
+    code = ("import sys, fatigue_pin; assert 'casadi' not in sys.modules, 'casadi'; "
+            "fatigue_pin.preset; assert 'fatigue_pin.fatigue.presets' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True)

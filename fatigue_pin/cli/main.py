@@ -455,6 +455,9 @@ def build_parser() -> argparse.ArgumentParser:
     from fatigue_pin.cli.fatigue import register as register_fatigue_commands
 
     register_fatigue_commands(sub)  # endurance, calibrate
+    from fatigue_pin.cli.mpc import register as register_mpc_command
+
+    register_mpc_command(sub)  # mpc
     return parser
 
 

@@ -35,3 +35,11 @@ class ResultFileError(FatiguePinError, ValueError):
 class OutputLocationError(ResultFileError):
     """An output path that cannot receive files (a file where a folder is expected, a folder that
     cannot be created or written to, a full disk, a wrong file name)."""
+
+
+class StudyError(FatiguePinError, ValueError):
+    """A study file or table that cannot be used (unknown key, wrong type, missing key, ...)."""
+
+
+class PresetFileError(ParameterError):
+    """A parameter file (JSON) that cannot be used as a preset."""

@@ -15,7 +15,11 @@ class OcpBuilder:
     """Builds the OCPs of one problem for any horizon, sharing its interval functions.
 
     Args:
-        problem, transcription, solver: as for :class:`Ocp`; guess: the default initial guess.
+        problem: as for :class:`Ocp`.
+        transcription: as for :class:`Ocp`.
+        solver: as for :class:`Ocp`.
+        guess: the default initial guess.
+        progress: a Reporter or a line callback (default quiet).
     """
 
     def __init__(self, problem: Problem, transcription: Transcription | None = None, solver: SolverOptions | None = None,

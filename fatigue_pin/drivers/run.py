@@ -63,6 +63,8 @@ class RunResult:
         urdf: the model's URDF text (so the file reproduces itself), or "".
         study: the TOML text of the study that produced the run, or "" (built in Python).
         fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
+        extras: further arrays of a driver, by name (numeric or structured; e.g. the closed loop's
+            re-plan table, measurements, prediction and estimate, :mod:`fatigue_pin.drivers.mpc`).
     """
 
     name: str
@@ -83,6 +85,7 @@ class RunResult:
     urdf: str = ""
     study: str = ""
     fatigued: np.ndarray | None = None
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.fatigued is None:

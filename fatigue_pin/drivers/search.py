@@ -192,7 +192,8 @@ def max_repetitions(
 
     Args:
         problem: the problem.
-        transcription, solver: discretisation and IPOPT settings.
+        transcription: discretisation settings.
+        solver: IPOPT settings.
         n_max: largest N tried (``None``: gallop until a failure).
         guess: initial guess of the first solve.
         progress: a Reporter (a line per step and a bar over the steps) or a line callback.

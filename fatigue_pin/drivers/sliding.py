@@ -101,13 +101,25 @@ def repetitions(converged_windows: int, settings: SlidingSettings) -> int:
     return settings.advance * (converged_windows - 1) + settings.window
 
 
+def iteration_limit(converged_iterations: list[int], settings: SlidingSettings, max_iter: int) -> int | None:
+    """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
+    iterations of the first ``warmup`` converged windows (``converged_iterations``, in order;
+    fixed once known, so a resumed run uses the same limit), at least ``min_iterations``, at most
+    ``max_iter``; ``None`` before ``warmup`` windows converged."""
+    iters = converged_iterations[: settings.warmup]
+    if settings.failure_iterations is None or len(iters) < settings.warmup:
+        return None
+    return int(min(max_iter, max(settings.min_iterations, settings.failure_iterations * float(np.median(iters)))))
+
+
 class SlidingHorizon:
     """A sliding-horizon run of a problem.
 
     Args:
         problem: the problem (its initial state starts the first window).
         sliding: window settings.
-        transcription, solver: discretisation and IPOPT settings.
+        transcription: discretisation settings.
+        solver: IPOPT settings.
         guess: initial guess of the first window (``rest`` or ``physical``).
         study: the TOML text of the study, stored with the run.
         labels: attributes stored with the run (e.g. the paper's cost, S and preset).
@@ -153,14 +165,7 @@ class SlidingHorizon:
                                     copy_fatigue=self.sliding.guess_fatigue == "copy")
 
     def _iteration_limit(self, state: _State) -> int | None:
-        """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
-        iterations of the first ``warmup`` converged windows (fixed once known, so a resumed run
-        uses the same limit), at least ``min_iterations``."""
-        s = self.sliding
-        iters = [row[4] for row in state.windows if row[3]][: s.warmup]
-        if s.failure_iterations is None or len(iters) < s.warmup:
-            return None
-        return int(min(self.solver.max_iter, max(s.min_iterations, s.failure_iterations * float(np.median(iters)))))
+        return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)
 
     def _failed_window(self, sol: Any, first_cycle: int, name: str) -> RunResult:
         """The last iterate of a failed window as a run (times from the window's first cycle)."""

@@ -25,8 +25,11 @@ order ``F / LD`` (about 1e-3 for LD = 10), see ``docs/fatigue.md`` for measured 
 
 **Empirical curves.** :data:`FREY_LAW_AVIN_2010`: the pooled power models ``ET = b0 * TL^b1``
 (s, TL as a fraction of maximum) of Frey-Law & Avin (2010), Ergonomics 53:109-129,
-doi:10.1080/00140130903389068, per joint region; the 3CC parameters of Frey-Law, Looft & Heitsman
-(2012) were fitted to these curves. :func:`compare_frey_law_avin` sets them side by side.
+doi:10.1080/00140130903389068, Table 2, per joint region; the 3CC parameters of Frey-Law, Looft &
+Heitsman (2012) were fitted to these curves. The coefficients agree with three independent
+transcriptions of the table, MyoSuite's among them (``docs/source/fatigue_validation.rst``,
+MyoHub/myosuite at commit 416c185ebc7ee3504500f70d1e8f2d2428c38a6d).
+:func:`compare_frey_law_avin` sets them side by side.
 
 Tables as text, the HDF5 file and the figure: :mod:`fatigue_pin.fatigue.endurance_report`.
 """
@@ -43,7 +46,8 @@ from scipy.integrate import solve_ivp
 
 from fatigue_pin.core.errors import FatiguePinError, OutputLocationError, ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
-from fatigue_pin.fatigue.models import FatigueModel, XiaFatigue
+from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.fatigue.models import XiaFatigue
 
 __all__ = [
     "FREY_LAW_AVIN_2010",

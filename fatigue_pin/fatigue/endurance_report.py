@@ -14,6 +14,7 @@ from fatigue_pin.core.files import atomic_write, check_output_dir
 from fatigue_pin.core.progress import Progress
 from fatigue_pin.fatigue.endurance import (
     DEFAULT_LOADS,
+    FREY_LAW_AVIN_2010,
     FREY_LAW_AVIN_SOURCE,
     MAX_CYCLES,
     EnduranceTable,
@@ -187,9 +188,9 @@ def run_endurance(
     model = preset(preset_name)
     source = preset_source(preset_name)
     out = check_output_dir(out_dir)
-    joint = None
-    if preset_name.startswith("frey-law-2012/"):
-        joint = preset_name.split("/", 1)[1]
+    # a preset of a joint region (frey-law-2012/elbow, rakshit-2021/elbow) is set beside that joint's curve
+    region = preset_name.split("/", 1)[1] if preset_name.count("/") == 1 and not preset_name.endswith(".json") else None
+    joint = region if region in FREY_LAW_AVIN_2010 else None
     tab = endurance_table(model, loads, duty_cycle, cycle_s, name=preset_name, joint=joint, source=source,
                           max_cycles=max_cycles, progress=progress)
     comparison = compare_frey_law_avin(loads) if compare else []

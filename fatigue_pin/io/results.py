@@ -19,6 +19,7 @@ Layout (``docs/results.md``)::
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
+        extras/<name>                      further arrays of a driver (closed loop: docs/mpc.md)
     /search/<table>                  max-cycles searches (fatigue_pin.drivers.search), one row per solve:
                                      n_cycles, converged, status, iterations, wall_time_s, kind
                                      (how it ended), guess (what started it), constraint_violation;
@@ -102,6 +103,11 @@ def _write_run(group: h5py.Group, run: RunResult) -> None:
     group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
     if run.windows is not None:
         group.create_dataset("windows", data=np.asarray(run.windows, dtype=WINDOW_DTYPE))
+    if run.extras:
+        extras = group.create_group("extras")
+        for name, value in run.extras.items():
+            data = np.asarray(value)
+            extras.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
 
 
 def _str_list(values: Any) -> tuple[str, ...]:
@@ -134,6 +140,7 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         urdf=str(group.attrs.get("urdf", "")),
         study=_text(group.attrs.get("study", "")),
         fatigued=group["fatigued"][()] if "fatigued" in group else group["mf"][()],  # before "fatigued": Xia's mf
+        extras={k: v[()] for k, v in group["extras"].items()} if "extras" in group else {},
     )
     run.check_shapes()
     return run
@@ -322,7 +329,8 @@ def write_run(path: str | Path, run: RunResult) -> Path:
             del h5[run.name]
         _write_run(h5.create_group(run.name), run)
 
-    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values()]
+    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values(),
+              *run.extras.values()]
     size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
     _atomic_rewrite(path, set(), fill, new_bytes=size)
     return path

@@ -35,12 +35,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from fatigue_pin.core.errors import FatiguePinError
+from fatigue_pin.core.errors import FatiguePinError, StudyError
 from fatigue_pin.core.settings import REQUIRED, default_value, expected_of, is_bool, is_int, is_str
-
-
-class StudyError(FatiguePinError, ValueError):
-    """A study file or table that cannot be used (unknown key, wrong type, missing key, ...)."""
 
 
 # -- keys of a table, from the fields of its class ---------------------------------------------------

@@ -208,7 +208,7 @@ def _fatigue_model(table: dict[str, Any], parent: dict[str, Any] | None):
     from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model
 
     kind = table.get("model", (parent or {}).get("model", "xia"))
-    names = FATIGUE_MODELS[kind].param_names
+    names = FATIGUE_MODELS[kind].param_names + FATIGUE_MODELS[kind].option_names
     values: dict[str, float] = {}
     for source in (parent, table):
         if not source:

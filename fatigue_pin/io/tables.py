@@ -124,13 +124,15 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
         raise StudyError(f"{where}.model = {kind!r}: expected one of {sorted(FATIGUE_MODELS)}")
     out["model"] = kind
     params = FATIGUE_MODELS[kind].param_names
-    allowed = set(params) | {"model", "preset", "joints", "plus", "minus"}
+    allowed = set(params) | set(FATIGUE_MODELS[kind].option_names) | {"model", "preset", "joints", "plus", "minus"}
     for key, value in out.items():
         if key not in allowed:
             raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints' or a parameter of {kind!r}: {list(params)}")
         if key in params and (not is_toml_number(value) or not math.isfinite(float(value)) or value < 0):
             unit = FATIGUE_MODELS[kind].param_units[params.index(key)]
             raise StudyError(f"{where}.{key} = {value!r}: expected " + ("a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite number >= 0"))
+        if key in FATIGUE_MODELS[kind].option_names and not is_toml_number(value):
+            raise StudyError(f"{where}.{key} = {value!r}: expected a number")
         if key == "preset" and not isinstance(value, str):
             raise StudyError(f"{where}.preset = {value!r}: expected a preset name or a JSON file path")
     if "joints" in out:

@@ -32,7 +32,8 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
-from fatigue_pin.fatigue.models import FatigueModel, FatigueParams
+from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.fatigue.models import FatigueParams
 
 __all__ = ["ActuatorHalf", "SignedTorqueActuators", "ParamsSpec"]
 
@@ -364,7 +365,8 @@ class SignedTorqueActuators:
 
         Args:
             m: fatigue states, shape (n_states,).
-            tau_plus, tau_minus: half torques (N m), shape (nv,) each.
+            tau_plus: flexion half torques (N m), shape (nv,).
+            tau_minus: extension half torques (N m), shape (nv,).
             p: optional parameter vector, shape (n_params,), e.g. a symbol; default
                 :meth:`param_vector`.
         """

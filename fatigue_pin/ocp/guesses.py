@@ -34,14 +34,16 @@ GUESSES = ("rest", "physical", "ik")
 Guess = tuple[np.ndarray, np.ndarray]
 
 
-def rollout_fatigue(ocp: Ocp, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, u: np.ndarray) -> np.ndarray:
+def rollout_fatigue(ocp: Ocp, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, u: np.ndarray,
+                    fatigue: np.ndarray | None = None) -> np.ndarray:
     """States (N+1, nx) from given q, qdot and controls, with the fatigue states integrated
-    forward from ``x_init``'s through the interval function, so that they are continuous."""
+    forward from ``x_init``'s through the interval function, so that they are continuous
+    (``fatigue``: the fatigue parameters (n_params,); default the actuators')."""
     N, L = u.shape[0], ocp.layout
     x = np.zeros((N + 1, L.nx))
     x[:, L.q], x[:, L.v] = q, qdot
     x[0, L.m] = x_init[L.m]
-    p = ocp.actuators.param_vector()
+    p = ocp.actuators.param_vector() if fatigue is None else np.asarray(fatigue, dtype=float)
     for k in range(N):
         m = np.asarray(ocp.functions.F_fatigue(x[k, L.m], u[k], p)).reshape(-1)
         x[k + 1, L.m] = np.clip(m, 0.0, 1.0)
@@ -168,16 +170,23 @@ def resample_guess(ocp: Ocp, previous: Any) -> Guess:
 
 
 def shifted_window_guess(ocp: Ocp, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray, advance: int,
-                         copy_fatigue: bool = False) -> Guess:
+                         copy_fatigue: bool = False, intervals: int | None = None,
+                         fatigue: np.ndarray | None = None) -> Guess:
     """Guess of a sliding window of K cycles from the previous window's states (K n + 1, nx) and
     controls (K n, nu): its cycle ``advance`` (the first cycle after the advance point; the last
     cycle when the window advances by K) copied into every cycle, the fatigue states integrated
-    from ``x_init`` (or, with ``copy_fatigue``, copied too, as the authors' code does)."""
+    from ``x_init`` (or, with ``copy_fatigue``, copied too, as the authors' code does).
+
+    ``intervals``: the window advances by this many intervals instead of ``advance`` cycles (a
+    closed loop re-planning mid-cycle): the n intervals starting there (or whole cycles earlier,
+    when fewer than n remain) are copied, so the guess has the new window's phase.
+    ``fatigue``: the fatigue parameters of the integration (default the actuators')."""
     n, K = ocp.task.intervals_per_cycle, ocp.n_cycles
-    cyc = min(advance, K - 1)
-    u = np.tile(u_prev[cyc * n : (cyc + 1) * n], (K, 1))
-    xs = np.vstack([np.tile(x_prev[cyc * n : (cyc + 1) * n], (K, 1)), x_prev[(cyc + 1) * n][None, :]])
+    shift = advance * n if intervals is None else int(intervals)
+    start = shift - n * max(0, -(-(shift - (K - 1) * n) // n))  # at most (K - 1) n, same phase
+    u = np.tile(u_prev[start : start + n], (K, 1))
+    xs = np.vstack([np.tile(x_prev[start : start + n], (K, 1)), x_prev[start + n][None, :]])
     if copy_fatigue:
         return xs, u
     L = ocp.layout
-    return rollout_fatigue(ocp, x_init, xs[:, L.q], xs[:, L.v], u), u
+    return rollout_fatigue(ocp, x_init, xs[:, L.q], xs[:, L.v], u, fatigue), u

@@ -434,7 +434,8 @@ class NlpSolver:
         Args:
             p: parameter vector, shape (n_p,) in Opti's parameter order.
             x0: initial guess, shape (n_x,) in Opti's variable order.
-            lam_x0, lam_g0: initial multipliers (e.g. from a previous solve) for warm starts.
+            lam_x0: initial multipliers of the variable bounds (e.g. from a previous solve), for warm starts.
+            lam_g0: initial multipliers of ``g``, for warm starts.
             max_iter: iteration limit of this solve (default: the options').
         """
         lbx, ubx, lbg, ubg = self.bounds(p)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.models import XiaFatigue
+from fatigue_pin.fatigue.presets import PRESETS, preset
 
 #: The paper's three costs and the cost terms each one uses (weights of the others are 0).
 COSTS: dict[str, tuple[str, ...]] = {
@@ -37,7 +38,7 @@ WINDOW = 3
 
 
 @dataclass(frozen=True)
-class Preset:
+class Variant:
     """Values on which the paper text and the authors' code differ (docs/authors-code.md).
 
     Attributes:
@@ -54,17 +55,19 @@ class Preset:
     last_node_offset: int
 
 
-PRESETS: dict[str, Preset] = {
-    "paper": Preset("paper", R=0.00094, posture_weight=1e5, last_node_offset=0),
-    "authors-code": Preset("authors-code", R=0.0094, posture_weight=1e4, last_node_offset=-1),
+#: The paper's two variants (the study files' ``preset`` label): the text and the authors' code.
+VARIANTS: dict[str, Variant] = {
+    "paper": Variant("paper", R=PRESETS["puchaud-2023/paper"].values["R"], posture_weight=1e5, last_node_offset=0),
+    "authors-code": Variant("authors-code", R=PRESETS["puchaud-2023/authors-code"].values["R"], posture_weight=1e4,
+                            last_node_offset=-1),
 }
 
 
-def preset(name: str) -> Preset:
-    """The preset ``name`` (``paper`` or ``authors-code``)."""
-    if name not in PRESETS:
-        raise ParameterError(f"preset = {name!r}: expected one of {list(PRESETS)}")
-    return PRESETS[name]
+def paper_variant(name: str) -> Variant:
+    """The variant ``name`` (``paper`` or ``authors-code``)."""
+    if name not in VARIANTS:
+        raise ParameterError(f"preset = {name!r}: expected one of {list(VARIANTS)}")
+    return VARIANTS[name]
 
 
 def elbow_params(S: float = 0.0) -> XiaFatigue:
@@ -81,7 +84,8 @@ def ocp_params(variant: str = "authors-code", S: float = 10.0) -> XiaFatigue:
     LD = LR = 10, F = 0.456, S = 10 (1/s). ``R`` depends on the source: ``"paper"`` (the text)
     gives 0.00094, ``"authors-code"`` (the code that produced the published results) 0.0094.
     """
-    return XiaFatigue(LD=10.0, LR=10.0, F=0.456, R=preset(variant).R, S=S)
+    paper_variant(variant)  # a known variant
+    return preset(f"puchaud-2023/{variant}", S=S)
 
 
 #: The paper's repetitions (with S = 10, without stabiliser S = 0).
@@ -115,16 +119,19 @@ def curl_study_dict(
     Args:
         horizon: ``full``, ``sliding`` or ``max-cycles``.
         cost: ``fatigue-torque``, ``fatigue`` or ``torque`` (:data:`COSTS`).
-        preset_name: ``paper`` or ``authors-code`` (:data:`PRESETS`).
+        preset_name: ``paper`` or ``authors-code`` (:data:`VARIANTS`).
         S: stabiliser of every half (1/s).
         cycles: the full horizon (default: the horizon's, 1), or the window (default :data:`WINDOW`).
         max_cycles: sliding: stop after; max-cycles: search bound.
-        guess, solver, transcription: optional settings of those tables.
-        intervals_per_cycle, substeps: the discretisation (the paper's 50 and 5; tests use less).
+        guess: the ``horizon.guess`` setting.
+        solver: optional ``[solver]`` settings.
+        transcription: optional ``[transcription]`` settings.
+        intervals_per_cycle: intervals per cycle (the paper's 50; tests use less).
+        substeps: RK4 substeps per interval (the paper's 5).
     """
     if cost not in COSTS:
         raise ParameterError(f"cost = {cost!r}: expected one of {list(COSTS)}")
-    p = preset(preset_name)
+    p = paper_variant(preset_name)
     weights = {"posture": p.posture_weight, **WEIGHTS}
     costs = {
         "posture": {"weight": weights["posture"] if "posture" in COSTS[cost] else 0.0, "joints": list(PENALISED_JOINTS)},

@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fatigue_pin.core.files import atomic_write
-from fatigue_pin.fatigue.models import FatigueParams, FatigueTrajectory, simulate
+from fatigue_pin.fatigue.models import FatigueParams
+from fatigue_pin.fatigue.simulation import FatigueTrajectory, simulate
 from fatigue_pin.paper.curl import elbow_params
 
 if TYPE_CHECKING:

@@ -23,7 +23,8 @@ def is_forward_file(path: str | Path) -> bool:
 
 def read_forward_studies(path: Path) -> ForwardStudiesResult:
     """Rebuild the in-memory forward-study results from ``forward_studies.h5`` (layout: docs/results.md)."""
-    from fatigue_pin.fatigue.models import FatigueParams, FatigueTrajectory
+    from fatigue_pin.fatigue.models import FatigueParams
+    from fatigue_pin.fatigue.simulation import FatigueTrajectory
 
     def trajectory(g: h5py.Group) -> FatigueTrajectory:
         a = g.attrs

@@ -45,13 +45,19 @@ def slurm_cluster(queue: str | None = None, walltime: str = "01:00:00", cores: i
                         scheduler_options=scheduler_options, **kwargs)
 
 
-def dashboard(client: Any) -> str | None:
+def dashboard(client: Any) -> str:
+    """The line saying where the Dask dashboard is, or that it is off: it needs bokeh (the
+    ``dashboard`` extra, ``pip install 'fatigue_pin[dashboard]'``)."""
     try:
         if "dashboard" in client.scheduler_info().get("services", {}):
-            return client.dashboard_link
+            return f"dashboard: {client.dashboard_link}"
     except Exception:  # noqa: BLE001 - no dashboard is not an error
-        return None
-    return None
+        pass
+    import importlib.util
+
+    if importlib.util.find_spec("bokeh") is None:
+        return "dashboard: off (it needs bokeh: pip install 'fatigue_pin[dashboard]')"
+    return "dashboard: off (the scheduler serves none)"
 
 
 # -- an existing scheduler -------------------------------------------------------------------------

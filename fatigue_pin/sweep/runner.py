@@ -83,7 +83,8 @@ def run_sweep(jobs: list[Job], out: str | Path, client: Any = None, cache_dir: s
         retries: Dask retries of a job whose worker raised a file system error.
         progress: called with one line per finished job.
         bar: show a tqdm progress bar on stderr.
-        pending, done: the result of :func:`plan`, when already computed.
+        pending: the jobs still to run, from :func:`plan`, when already computed.
+        done: the jobs already done, from :func:`plan`, when already computed.
     """
     from distributed import as_completed
 
@@ -180,9 +181,7 @@ def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None
             cluster = clusters.local_cluster(workers)
             client = Client(cluster)
         try:
-            link = clusters.dashboard(client)
-            if link:
-                progress(f"dashboard: {link}")
+            progress(clusters.dashboard(client))
             outcome = run_sweep(jobs, out, client, cache_dir=cache_dir, retries=retries, progress=progress, bar=bar,
                                 pending=pending, done=done)
         finally:

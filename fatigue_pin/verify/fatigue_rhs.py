@@ -18,14 +18,15 @@ NumpyRhs = Callable[[np.ndarray, float, dict[str, float]], np.ndarray]
 
 
 def _xia(m: np.ndarray, TL: float, p: dict[str, float]) -> np.ndarray:
-    """Xia's 3CC with stabiliser S and rest multiplier r (docs/fatigue.md)."""
+    """Xia's 3CC with stabiliser S and rest multiplier r (docs/fatigue.md); r acts while
+    ma >= TL and TL <= rest_load (default 1: on the whole relaxation branch)."""
     ma, mr, mf = m
     if ma < TL:
         C = p["LD"] * (TL - ma) if mr >= TL - ma else p["LD"] * mr
         R = p["R"]
     else:
         C = p["LR"] * (TL - ma)
-        R = p["r"] * p["R"]
+        R = p["r"] * p["R"] if TL <= p.get("rest_load", 1.0) else p["R"]
     return np.array([
         C - p["F"] * ma,
         -C + R * mf,
@@ -34,7 +35,7 @@ def _xia(m: np.ndarray, TL: float, p: dict[str, float]) -> np.ndarray:
 
 
 def _michaud(m: np.ndarray, TL: float, p: dict[str, float]) -> np.ndarray:
-    """Michaud's model as bioptim writes it (fatigue_pin.fatigue.models.michaud_rhs docstring)."""
+    """Michaud's model as bioptim writes it (fatigue_pin.fatigue.michaud.michaud_rhs docstring)."""
     ma, mr, mf, E = m
     th, k, S = p["effort_threshold"], p["effort_factor"], p["stabilization_factor"]
     if ma < TL:

@@ -43,9 +43,11 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         tolerances: the limits that decide ``passed`` (default :class:`VerifyTolerances`).
         single_shooting: also integrate the stored controls over the whole horizon from the
             stored initial state and report the drift of the states and of the invariant.
-        rtol, atol, method: tolerances (finite; rtol > 0, atol >= 0) and method of ``solve_ivp``
-            (DOP853 by default; e.g. ``RK45`` with rtol 1e-3, atol 1e-6 as the paper's single
-            shooting). They apply to the gap check too, so loose values loosen its reference.
+        rtol: relative tolerance of ``solve_ivp`` (finite, > 0; ``RK45`` with rtol 1e-3, atol 1e-6
+            is the paper's single shooting). The tolerances and the method apply to the gap check
+            too, so loose values loosen its reference.
+        atol: absolute tolerance of ``solve_ivp`` (finite, >= 0).
+        method: method of ``solve_ivp`` (DOP853 by default).
 
     Returns:
         A :class:`VerifyReport`; non-finite stored values fail its "finite stored values" line.

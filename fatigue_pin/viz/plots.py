@@ -343,6 +343,10 @@ def plot_file(path: Path, out_dir: Path) -> list[Path]:
         paths: list[Path] = []
         for run in loaded:
             paths += plot_run(run, out_dir)
+            if run.attrs.get("horizon") == "mpc":  # a closed loop: plant, estimate, prediction
+                from fatigue_pin.viz.mpc import plot_mpc
+
+                paths += plot_mpc(run, out_dir)
         if len(loaded) > 1:
             paths += plot_comparison(loaded, out_dir)
         for name, table in read_search(path).items():

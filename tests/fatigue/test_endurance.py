@@ -22,7 +22,8 @@ from fatigue_pin.fatigue.endurance import (
 )
 from fatigue_pin.fatigue.endurance_report import format_comparison, run_endurance
 from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.fatigue.models import MichaudFatigue, XiaFatigue
+from fatigue_pin.fatigue.michaud import MichaudFatigue
+from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.fatigue.presets import preset
 
 ELBOW = XiaFatigue(LD=10, LR=10, F=0.00912, R=0.00094)
@@ -73,7 +74,7 @@ def test_no_failure_within_t_max():
 
 def test_definition_is_capacity_below_target():
     # At ET, ma + mr = TL exactly; just before, the actuator still holds TL.
-    from fatigue_pin.fatigue.models import simulate
+    from fatigue_pin.fatigue.simulation import simulate
 
     TL = 0.7
     et = endurance_time(ELBOW, TL)
@@ -159,6 +160,25 @@ def test_cli_endurance(tmp_path, capsys):
     assert args.func(args) == 0
     out = capsys.readouterr().out
     assert "| 0.50 |" in out and "Frey-Law & Avin knee" in out and "endurance.h5" in out
+
+
+def test_cli_endurance_rakshit_elbow(tmp_path, capsys):
+    """``fatigue-pin endurance --preset rakshit-2021/elbow``: Rakshit et al.'s elbow row (F = 0.01086,
+    R = 0.00225), beside the elbow power curve; the sustained ET is the 3CC closed form (r acts at
+    rest only, so not here), written out by hand."""
+    out_dir = tmp_path / "e"
+    args = _parser().parse_args(["endurance", "--preset", "rakshit-2021/elbow", "--out", str(out_dir),
+                                 "--loads", "0.5", "--no-compare"])
+    assert args.func(args) == 0
+    out = capsys.readouterr().out
+    assert "F = 0.01086, R = 0.00225" in out and "r = 4.93, rest_load = 0" in out and "Frey-Law & Avin elbow" in out
+    F, R, TL = 0.01086, 0.00225, 0.5
+    closed = -math.log(1 - R * (1 - TL) / (F * TL)) / R  # 103.2 s
+    with h5py.File(out_dir / "endurance.h5") as f:
+        g = f["endurance/0"]
+        assert g["et_closed_form_s"][0] == pytest.approx(closed, rel=1e-12)
+        assert g["et_sim_s"][0] == pytest.approx(closed, rel=5e-3)  # LD = 10: ET grows by about F / LD
+        assert g["et_power_model_s"][0] == pytest.approx(17.98 * TL ** -2.21, rel=1e-12)
 
 
 def test_cli_endurance_checks_output_first(tmp_path):

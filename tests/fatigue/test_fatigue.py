@@ -10,15 +10,9 @@ import pytest
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.paper.curl import elbow_params, ocp_params
-from fatigue_pin.fatigue.models import (
-    STABILITY_LIMITS,
-    FatigueParams,
-    check_stabiliser,
-    fatigue_rhs,
-    invariant_error,
-    rhs_numeric,
-    simulate,
-)
+from fatigue_pin.fatigue.interface import STABILITY_LIMITS, check_stabiliser
+from fatigue_pin.fatigue.models import FatigueParams, fatigue_rhs
+from fatigue_pin.fatigue.simulation import invariant_error, rhs_numeric, simulate
 
 # Round numbers so the expected rates can be worked out by hand.
 P = FatigueParams(LD=2.0, LR=3.0, F=0.1, R=0.05)
@@ -82,6 +76,32 @@ def test_rest_recovery_multiplier_3ccr():
 
 
 # -- the casadi function ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("m, TL, r_acts", [
+    ([0.0, 0.6, 0.4], 0.0, True),     # rest: ma >= TL = 0
+    ([0.4, 0.3, 0.3], 0.2, False),    # relaxing at a load: r acts only with rest_load >= 0.2
+    ([0.1, 0.6, 0.3], 0.2, False),    # developing: never
+])
+def test_rest_load_option_selects_where_r_acts(m, TL, r_acts):
+    base = P.with_(r=10.0)
+    rest_only = base.with_(rest_load=0.0)
+    R_eff = (10.0 if r_acts else 1.0) * P.R
+    dm = rest_only.rates(m, TL)
+    np.testing.assert_allclose(dm[2] - P.F * m[0], -R_eff * m[2], atol=1e-15)
+    # the default (rest_load = 1): r on the whole relaxation branch ma >= TL, as before the option
+    np.testing.assert_allclose(base.rates(m, TL)[2] - P.F * m[0], -(10.0 if m[0] >= TL else 1.0) * P.R * m[2], atol=1e-15)
+    np.testing.assert_allclose(base.with_(rest_load=0.2).rates(m, TL), base.rates(m, TL), atol=1e-15)
+
+
+def test_rest_load_default_keeps_the_equations_and_is_validated():
+    assert P.rest_load == 1.0 and "rest_load" not in P.as_dict()  # result files and studies unchanged
+    assert P.rhs().serialize() == fatigue_rhs().serialize() == fatigue_rhs(1.0).serialize()
+    assert P.with_(rest_load=0.0).structure_key() != P.structure_key()
+    assert P.with_(rest_load=0.0).as_dict()["rest_load"] == 0.0
+    for bad in (-0.1, 1.5, math.nan, "0", True):
+        with pytest.raises(ParameterError, match=r"XiaFatigue\.rest_load = .*expected a target load in \[0, 1\]"):
+            P.with_(rest_load=bad)
 
 
 def test_fatigue_rhs_is_built_once_and_symbolic():

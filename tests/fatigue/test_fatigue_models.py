@@ -1,4 +1,4 @@
-"""Tests of Michaud's fatigue model (fatigue_pin.fatigue.models.MichaudFatigue) and of mixing models."""
+"""Tests of Michaud's fatigue model (fatigue_pin.fatigue.michaud.MichaudFatigue) and of mixing models."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ from scipy.integrate import solve_ivp
 
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
 from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.fatigue.models import FATIGUE_MODELS, MichaudFatigue, XiaFatigue, fatigue_model
+from fatigue_pin.fatigue.michaud import MichaudFatigue
+from fatigue_pin.fatigue.models import FATIGUE_MODELS, XiaFatigue, fatigue_model
 
 # Round numbers so the rates can be worked out by hand.
 M = MichaudFatigue(LD=2.0, LR=3.0, F=0.1, R=0.05, effort_threshold=0.2, effort_factor=0.5, stabilization_factor=4.0)

@@ -10,7 +10,8 @@ import pytest
 
 from fatigue_pin.ocp.actuators import ActuatorHalf, SignedTorqueActuators
 from fatigue_pin.core.errors import DimensionError, ParameterError
-from fatigue_pin.fatigue.models import FatigueParams, rhs_numeric
+from fatigue_pin.fatigue.models import FatigueParams
+from fatigue_pin.fatigue.simulation import rhs_numeric
 from fatigue_pin.paper.curl import elbow_params
 
 MODEL = SimpleNamespace(

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import small_curl
 from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.fatigue.models import FatigueModel
+from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import solution_to_run
 from fatigue_pin.paper.curl import ocp_params

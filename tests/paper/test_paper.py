@@ -9,14 +9,14 @@ import pytest
 
 from conftest import small_curl
 from fatigue_pin.drivers.full import OcpBuilder
-from fatigue_pin.paper.curl import COSTS, PRESETS, authors_variant_dict, curl_study
+from fatigue_pin.paper.curl import COSTS, VARIANTS, authors_variant_dict, curl_study
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
 from fatigue_pin.io.study import Study
 
 STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
-@pytest.mark.parametrize("preset", list(PRESETS))
+@pytest.mark.parametrize("preset", list(VARIANTS))
 @pytest.mark.parametrize("cost", list(COSTS))
 @pytest.mark.parametrize("kind, horizon", [("sliding", "sliding"), ("full", "max-cycles")])
 def test_shipped_study_files_are_the_paper_configurations(preset, cost, kind, horizon):

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from fatigue_pin.fatigue.models import MichaudFatigue, XiaFatigue
+from fatigue_pin.fatigue.michaud import MichaudFatigue
+from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.verify.fatigue_rhs import numpy_rhs
 
 
 def test_numpy_rhs_matches_the_models_rates_on_every_branch():
     rng = np.random.default_rng(0)
-    models = [XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0),
+    models = [XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0), XiaFatigue(10, 10, 0.456, 0.0094, 10.0, 3.0, rest_load=0.3),
               MichaudFatigue(10, 10, 0.456, 0.0094, effort_threshold=0.2, effort_factor=0.1, stabilization_factor=1.0)]
     for model in models:
         f, p = numpy_rhs(model.kind), model.as_dict()

@@ -1,0 +1,260 @@
+"""The plant of a closed-loop run: the simulated body that the controller's plan meets.
+
+The plant is a problem of its own (its model, payload included, and its actuators with their
+true fatigue parameters); it never shares state with the controller. Over every interval of
+length dt it
+
+1. limits each half's commanded torque to what its true fatigue state allows at the interval's
+   start, ``TL_h <= 1 - mf_h`` (a tired plant cannot deliver what a fresh model plans), and
+   holds the delivered torques constant over the interval (zero-order hold);
+2. adds the torque disturbance ``d_k`` (N m per joint: a constant plus, with ``std`` > 0, a
+   normal draw per interval);
+3. integrates ``qddot = ABA(q, qdot, tau_plus + tau_minus + d)`` (numeric Pinocchio on the
+   plant's model) and ``dm/dt`` of every half (its fatigue model's right-hand side, evaluated
+   by :meth:`SignedTorqueActuators.fatigue_rates`) with ``substeps`` classical RK4 steps, or
+   with scipy's adaptive ``solve_ivp`` (``integrator = "rk45"``).
+
+What the controller sees (:meth:`Plant.measure`, :meth:`Plant.probe`): q and qdot with normal
+noise of std ``noise.q`` (rad) and ``noise.qdot`` (rad/s), and the capacity ``1 - mf`` of every
+half with noise of std ``noise.capacity``. Every draw comes from a generator seeded with
+``(seed, node, channel)``, so a run is reproducible bit for bit and a resumed run draws what an
+uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+from scipy.integrate import solve_ivp
+
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.ocp.problem import Problem
+
+#: Integrators of the plant.
+PLANT_INTEGRATORS = ("rk4", "rk45")
+#: Generator channels (the third entry of the seed of every draw).
+_MEASURE, _PROBE, _DISTURB = 0, 1, 2
+
+
+def _std(owner: str, value: object, unit: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)) or value < 0:
+        raise ParameterError(f"{owner} = {value!r}: expected a standard deviation >= 0 ({unit})")
+    return float(value)
+
+
+def _per_joint(owner: str, value: object, what: str) -> tuple[float, ...] | float:
+    """A number or a list of numbers (N m), each finite (and >= 0 for a std)."""
+    values = value if isinstance(value, (list, tuple)) else [value]
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)) or (what == "std" and v < 0):
+            expected = "a standard deviation >= 0 (N m)" if what == "std" else "a torque (N m)"
+            raise ParameterError(f"{owner} = {value!r}: expected {expected}, or a list of them (one per joint)")
+    return tuple(float(v) for v in values) if isinstance(value, (list, tuple)) else float(value)
+
+
+@dataclass(frozen=True)
+class PlantNoise:
+    """Measurement noise (standard deviations, normal, independent per node and entry).
+
+    Attributes:
+        q: of the measured joint positions (rad, or m for a prismatic joint).
+        qdot: of the measured joint velocities (rad/s or m/s).
+        capacity: of the probed capacity ``1 - mf`` of every half (dimensionless).
+    """
+
+    q: float = 0.0
+    qdot: float = 0.0
+    capacity: float = 0.0
+
+    def __post_init__(self) -> None:
+        for key, unit in (("q", "rad"), ("qdot", "rad/s"), ("capacity", "a fraction of the half's limit")):
+            object.__setattr__(self, key, _std(f"plant.noise.{key}", getattr(self, key), unit))
+
+
+@dataclass(frozen=True)
+class PlantDisturbance:
+    """A torque disturbance added to every joint's torque, held over each interval.
+
+    Attributes:
+        constant: N m, one value for every joint or one per joint.
+        std: standard deviation of a normal draw per interval and joint (N m), one value or one
+            per joint.
+    """
+
+    constant: tuple[float, ...] | float = 0.0
+    std: tuple[float, ...] | float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "constant", _per_joint("plant.disturbance.constant", self.constant, "torque"))
+        object.__setattr__(self, "std", _per_joint("plant.disturbance.std", self.std, "std"))
+
+    def vectors(self, joint_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+        """``(constant, std)`` as arrays of shape (nv,) for a model with ``joint_names``."""
+        nv = len(joint_names)
+        out = []
+        for key in ("constant", "std"):
+            value = np.atleast_1d(np.asarray(getattr(self, key), dtype=float))
+            if value.size == 1:
+                value = np.full(nv, float(value[0]))
+            if value.size != nv:
+                raise ParameterError(f"plant.disturbance.{key} has {value.size} values; expected 1 or one per joint "
+                                     f"{list(joint_names)}")
+            out.append(value)
+        return out[0], out[1]
+
+    @property
+    def active(self) -> bool:
+        return bool(np.any(np.asarray(self.constant) != 0) or np.any(np.asarray(self.std) > 0))
+
+
+@dataclass(frozen=True)
+class PlantSettings:
+    """How the plant is simulated and measured (its model and fatigue come from its problem).
+
+    Attributes:
+        noise: measurement noise.
+        disturbance: torque disturbance.
+        seed: seed of every random draw (an integer >= 0).
+        integrator: ``rk4`` (``substeps`` classical steps per interval) or ``rk45`` (scipy's
+            adaptive ``solve_ivp`` with ``rtol``, ``atol``).
+        substeps: RK4 steps per interval; ``None``: the controller's transcription's.
+        rtol, atol: tolerances of ``rk45``.
+    """
+
+    noise: PlantNoise = field(default_factory=PlantNoise)
+    disturbance: PlantDisturbance = field(default_factory=PlantDisturbance)
+    seed: int = 0
+    integrator: str = "rk4"
+    substeps: int | None = None
+    rtol: float = 1e-9
+    atol: float = 1e-11
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.noise, PlantNoise):
+            raise ParameterError(f"plant.noise = {self.noise!r}: expected a PlantNoise")
+        if not isinstance(self.disturbance, PlantDisturbance):
+            raise ParameterError(f"plant.disturbance = {self.disturbance!r}: expected a PlantDisturbance")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise ParameterError(f"seed = {self.seed!r}: expected an integer >= 0")
+        if self.integrator not in PLANT_INTEGRATORS:
+            raise ParameterError(f"plant.integrator = {self.integrator!r}: expected one of {list(PLANT_INTEGRATORS)}")
+        if self.substeps is not None and (isinstance(self.substeps, bool) or not isinstance(self.substeps, int) or self.substeps < 1):
+            raise ParameterError(f"plant.substeps = {self.substeps!r}: expected an integer >= 1 (RK4 steps per interval)")
+        for key in ("rtol", "atol"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0 < v < 1):
+                raise ParameterError(f"plant.{key} = {v!r}: expected a tolerance in (0, 1)")
+
+    @property
+    def noisy(self) -> bool:
+        """Whether anything the controller measures or the plant feels is random."""
+        n = self.noise
+        return n.q > 0 or n.qdot > 0 or n.capacity > 0 or bool(np.any(np.asarray(self.disturbance.std) > 0))
+
+
+class Plant:
+    """The simulated body (see the module docstring).
+
+    Args:
+        problem: the plant's problem: its model (payload included) and actuators (true fatigue
+            parameters); its state layout must be the controller's.
+        dt: interval length (s).
+        settings: noise, disturbance, seed, integrator.
+        substeps: RK4 steps per interval when ``settings.substeps`` is None.
+    """
+
+    def __init__(self, problem: Problem, dt: float, settings: PlantSettings | None = None, substeps: int = 5) -> None:
+        self.settings = settings or PlantSettings()
+        self.problem = problem
+        self.model, self.actuators = problem.model, problem.actuators
+        self.layout = problem.layout
+        self.dt = float(dt)
+        self.substeps = self.settings.substeps or int(substeps)
+        self._data = self.model.pin_model.createData()
+        L = self.layout
+        m, u = ca.SX.sym("m", L.n_fatigue), ca.SX.sym("u", L.nu)
+        # the halves' own right-hand sides with the plant's parameters (one owner of the equations)
+        self._rates = ca.Function("plant_rates", [m, u], [self.actuators.fatigue_rates(m, u[: L.nv], u[L.nv :])])
+        self._fatigued = [L.nq + L.nv + r for r in self.actuators.fatigued_rows()]
+        self._constant, self._std = self.settings.disturbance.vectors(self.model.joint_names)
+        limits = self.actuators.signed_limits  # half order (j0+, j0-, j1+, ...)
+        self._limits_u = np.concatenate([limits[0::2], limits[1::2]])  # control order (tau_plus, tau_minus)
+        self._half_of_u = np.concatenate([np.arange(0, L.n_halves, 2), np.arange(1, L.n_halves, 2)])
+
+    def _rng(self, node: int, channel: int) -> np.random.Generator:
+        return np.random.default_rng([int(self.settings.seed), int(node), channel])
+
+    # -- what the plant does ---------------------------------------------------------------------
+
+    def capacity(self, x: np.ndarray) -> np.ndarray:
+        """True capacity ``1 - mf`` of every half (half order), shape (n_halves,)."""
+        return 1.0 - np.asarray(x)[self._fatigued]
+
+    def deliver(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The torques (nu,) the plant delivers for the command ``u`` (nu,) in state ``x``: each
+        half's target load limited to its capacity ``max(1 - mf, 0)`` (the sign of a command is
+        not corrected: the solver's bounds hold up to its bound relaxation, about 1e-8)."""
+        cap = np.maximum(self.capacity(x), 0.0)[self._half_of_u]
+        TL = np.asarray(u, dtype=float) / self._limits_u
+        return np.minimum(TL, cap) * self._limits_u
+
+    def disturbance(self, node: int) -> np.ndarray:
+        """Torque disturbance of the interval starting at ``node`` (nv,), N m."""
+        d = self._constant.copy()
+        if np.any(self._std > 0):
+            d = d + self._std * self._rng(node, _DISTURB).standard_normal(self._std.size)
+        return d
+
+    def rhs(self, x: np.ndarray, u: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """``dx/dt`` (nx,) under the delivered torques ``u`` (nu,) and disturbance ``d`` (nv,)."""
+        L = self.layout
+        q, v = x[L.q], x[L.v]
+        tau = u[: L.nv] + u[L.nv :] + d
+        a = pin.aba(self.model.pin_model, self._data, q, v, tau)
+        m = np.asarray(self._rates(x[L.m], u)).reshape(-1)
+        return np.concatenate([v, a, m])
+
+    def step(self, x: np.ndarray, u_command: np.ndarray, node: int) -> tuple[np.ndarray, np.ndarray]:
+        """One interval from ``x`` (nx,) at ``node`` under the command ``u_command`` (nu,).
+
+        Returns:
+            The state at the next node (nx,) and the delivered torques (nu,).
+        """
+        x = np.asarray(x, dtype=float)
+        u = self.deliver(x, u_command)
+        d = self.disturbance(node)
+        if self.settings.integrator == "rk45":
+            sol = solve_ivp(lambda t, y: self.rhs(y, u, d), (0.0, self.dt), x, method="RK45",
+                            rtol=self.settings.rtol, atol=self.settings.atol)
+            return sol.y[:, -1].copy(), u
+        h = self.dt / self.substeps
+        for _ in range(self.substeps):
+            k1 = self.rhs(x, u, d)
+            k2 = self.rhs(x + h / 2 * k1, u, d)
+            k3 = self.rhs(x + h / 2 * k2, u, d)
+            k4 = self.rhs(x + h * k3, u, d)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, u
+
+    # -- what the controller sees ----------------------------------------------------------------
+
+    def measure(self, x: np.ndarray, node: int) -> tuple[np.ndarray, np.ndarray]:
+        """Measured q (nq,) and qdot (nv,) at ``node``."""
+        L, n = self.layout, self.settings.noise
+        q, v = np.array(x[L.q], dtype=float), np.array(x[L.v], dtype=float)
+        if n.q > 0 or n.qdot > 0:
+            e = self._rng(node, _MEASURE).standard_normal(L.nq + L.nv)
+            q, v = q + n.q * e[: L.nq], v + n.qdot * e[L.nq :]
+        return q, v
+
+    def probe(self, x: np.ndarray, node: int) -> np.ndarray:
+        """Measured capacity ``1 - mf`` of every half (half order) at ``node``, shape (n_halves,)."""
+        c = self.capacity(x)
+        if self.settings.noise.capacity > 0:
+            c = c + self.settings.noise.capacity * self._rng(node, _PROBE).standard_normal(c.size)
+        return c

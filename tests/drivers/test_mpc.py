@@ -1,0 +1,156 @@
+"""Closed-loop MPC on the small curl: the plan meets a plant."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import small_curl
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.drivers.mpc import ClosedLoop, MpcSettings, phase_shifted, repetitions_achieved, task_errors
+from fatigue_pin.drivers.plant import PlantDisturbance, PlantNoise, PlantSettings
+from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
+from fatigue_pin.ocp.task import joint_target_pairs
+
+
+def _loop(study, plant_study=None, mpc=None, plant=None, max_cycles=5):
+    return ClosedLoop(study.problem(), plant_study.problem() if plant_study else None,
+                      SlidingSettings(window=3, advance=1, max_cycles=max_cycles), mpc or MpcSettings(), plant,
+                      study.transcription(), study.solver())
+
+
+def test_plant_equal_to_the_model_reproduces_the_sliding_horizon():
+    """No [plant], no noise, re-planning every cycle: the plant's run is the sliding-horizon run
+    (the solver's tolerances are tight so that the plan and the simulation agree to 1e-6)."""
+    study = small_curl("sliding", solver={"compile": False, "tol": 1e-10, "constr_viol_tol": 1e-10})
+    sliding = SlidingSettings(window=3, advance=1, max_cycles=5)
+    reference = SlidingHorizon(study.problem(), sliding, study.transcription(), study.solver()).run()
+    loop = _loop(study)
+    state = loop.run()
+    L = loop.problem.layout
+    x_ref = L.assemble(reference.q, reference.qdot, reference.fatigue)
+    x = np.array(state.x)
+    assert x.shape == x_ref.shape
+    assert np.abs(x - x_ref).max() < 1e-6
+    assert loop.repetitions(state) == reference.n_cycles == 5
+    assert [r[1] for r in state.replans] == [0, 10, 20]
+    np.testing.assert_array_equal(np.array(state.history.u_command), np.array(state.history.u_delivered))
+    np.testing.assert_allclose(np.array(state.history.m), x[:, L.m], atol=1e-9)  # open-loop estimate = plant
+    np.testing.assert_allclose(np.array(state.prediction), x, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def tired():
+    """The small curl against a plant whose F is twice the model's, with both estimators, and
+    against a plant equal to the model (the nominal run)."""
+    study = small_curl("sliding")
+    plant_study = study.replace({"fatigue.F": 2 * study.data["fatigue"]["F"]})
+    plant = PlantSettings(noise=PlantNoise(capacity=0.01), seed=3)
+    runs = {}
+    for name, plant_of, est in (("nominal", None, "open-loop"), ("open-loop", plant_study, "open-loop"), ("mhe", plant_study, "mhe")):
+        margin = 0.0 if name == "nominal" else 0.03  # the controller backs off 3 % of every half's capacity
+        loop = _loop(study, plant_of, MpcSettings(estimator=est, probe_every=1, capacity_margin=margin), plant, max_cycles=6)
+        runs[name] = (loop, loop.run())
+    return study, runs
+
+
+def test_open_loop_over_plans_and_the_tired_plant_misses_its_targets(tired):
+    study, runs = tired
+    nominal_loop, nominal = runs["nominal"]
+    loop, state = runs["open-loop"]
+    reps = loop.repetitions(state)
+    assert nominal_loop.repetitions(nominal) == 6
+    assert reps < 6
+    errors = loop.task_errors(state)
+    assert errors[reps] > loop.mpc.target_tolerance
+    # the controller believed its plan: the predicted elbow met its targets where the plant did not
+    n = 10
+    pred = np.array(state.prediction)
+    x = np.array(state.x)
+    node, j, target = next((node, j, lo) for node, j, lo, hi in joint_target_pairs(loop.problem.task, loop.problem.model, len(x) - 1)
+                           if node >= reps * n and abs(x[node, j] - lo) > loop.mpc.target_tolerance)
+    assert abs(pred[node, j] - target) < 1e-6
+    # and it under-estimated the plant's fatigue
+    L = loop.problem.layout
+    mf_rows = L.fatigue_index("mf")
+    assert (np.array(state.x)[-1, mf_rows] - np.array(state.history.m)[-1][[r - L.nq - L.nv for r in mf_rows]]).max() > 0.1
+
+
+def test_mhe_recovers_F_and_achieves_at_least_as_many_repetitions(tired):
+    study, runs = tired
+    loop, state = runs["mhe"]
+    F_true = 2 * study.data["fatigue"]["F"]
+    acts = loop.problem.actuators
+    F_rows = [off + h.params.param_names.index("F") for h, off in zip(acts.halves, acts.param_offsets())]
+    after_three_probes = [p for r, p in zip(state.replans, state.params) if r[1] >= 30]
+    assert after_three_probes
+    for params in after_three_probes:
+        for half in (0, 2):  # shoulder_plus and elbow_plus carry the curl
+            assert abs(params[F_rows[half]] / F_true - 1) < 0.10
+    ol_loop, ol_state = runs["open-loop"]
+    assert loop.repetitions(state) >= ol_loop.repetitions(ol_state)
+    assert loop.repetitions(state) == 6 > ol_loop.repetitions(ol_state)  # on this case strictly more: every cycle
+    L = loop.problem.layout
+    x, m = np.array(state.x), np.array(state.history.m)
+    mf = [r - L.nq - L.nv for r in L.fatigue_index("mf")]
+    assert np.abs(x[-1, L.fatigue_index("mf")] - m[-1, mf]).max() < 0.05
+
+
+def test_seeded_noise_is_reproducible_bit_for_bit():
+    study = small_curl("sliding")
+    plant = PlantSettings(noise=PlantNoise(q=1e-3, qdot=1e-2, capacity=0.01), disturbance=PlantDisturbance(std=0.2), seed=11)
+    states = [_loop(study, None, MpcSettings(), plant, max_cycles=4).run() for _ in range(2)]
+    for attr in ("x", "y", "prediction"):
+        np.testing.assert_array_equal(np.array(getattr(states[0], attr)), np.array(getattr(states[1], attr)))
+    np.testing.assert_array_equal(np.array(states[0].history.u_delivered), np.array(states[1].history.u_delivered))
+    other = _loop(study, None, MpcSettings(), PlantSettings(noise=plant.noise, disturbance=plant.disturbance, seed=12),
+                  max_cycles=4).run()
+    assert not np.array_equal(np.array(other.x), np.array(states[0].x))
+    y, x = np.array(states[0].y), np.array(states[0].x)
+    assert 0 < np.abs(y[:, :2] - x[:, :2]).max() < 0.01  # measured, not true
+
+
+def test_re_planning_mid_cycle_keeps_the_targets():
+    """Re-planning every half cycle: windows at phases 0 and 5 (the task shifted by half a cycle),
+    and a plant equal to the model still meets every target."""
+    study = small_curl("sliding")
+    loop = _loop(study, None, MpcSettings(replan_every=5), None, max_cycles=4)
+    state = loop.run()
+    assert [int(r[2]) for r in state.replans] == [0, 5, 0]
+    assert all(r[4] for r in state.replans)
+    assert loop.repetitions(state) == 4
+    assert loop.task_errors(state).max() < 1e-3
+    assert set(loop._ocps) == {0, 5}
+
+
+def test_phase_shifted_task():
+    problem = small_curl("sliding").problem()
+    shifted = phase_shifted(problem, 3)
+    ats = sorted((t.value, t.at) for t in shifted.task.joint_targets)
+    assert ats == sorted([(problem.task.joint_targets[0].value, 0.7), (problem.task.joint_targets[1].value, 0.2)])
+    assert phase_shifted(problem, 10) is problem
+
+
+def test_task_errors_count_both_ends_of_a_cycle():
+    problem = small_curl("sliding").problem()
+    low, high = (t.value for t in problem.task.joint_targets)
+    x = np.zeros((31, problem.layout.nx))
+    x[0::10, 1], x[5::10, 1] = low, high
+    x[20, 1] = low + 0.1  # the end of cycle 1 and the start of cycle 2
+    errors = task_errors(problem, x, 3)
+    np.testing.assert_allclose(errors, [0.0, 0.1, 0.1])
+    assert repetitions_achieved(errors, 0.05) == 1 and repetitions_achieved(errors, 0.2) == 3
+
+
+@pytest.mark.parametrize("make, key", [
+    (lambda: MpcSettings(replan_every=0), "mpc.replan_every"),
+    (lambda: MpcSettings(replan_every=2.5), "mpc.replan_every"),
+    (lambda: MpcSettings(estimator="kalman"), "mpc.estimator"),
+    (lambda: MpcSettings(probe_every=0), "mpc.probe_every"),
+    (lambda: MpcSettings(target_tolerance=-1.0), "mpc.target_tolerance"),
+    (lambda: _loop(small_curl("sliding"), None, MpcSettings(replan_every=31)), "mpc.replan_every"),
+])
+def test_bad_mpc_settings_name_the_key(make, key):
+    with pytest.raises(ParameterError) as err:
+        make()
+    assert str(err.value).startswith(key + " = ") and "\n" not in str(err.value)
