@@ -14,12 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fatigue_pin.core.errors import FatiguePinError
+from fatigue_pin.core.errors import FatiguePinError, UsageError
 from fatigue_pin.core.signals import Interrupted, watch
-
-
-class UsageError(FatiguePinError, ValueError):
-    """A command line that does not parse (unknown command or option, bad value)."""
 
 
 # -- options whose default belongs to a settings class or a function of the package -----------------

@@ -43,3 +43,19 @@ class StudyError(FatiguePinError, ValueError):
 
 class PresetFileError(ParameterError):
     """A parameter file (JSON) that cannot be used as a preset."""
+
+
+class SweepError(FatiguePinError, ValueError):
+    """A sweep file that cannot be used, or a sweep output folder that cannot receive results."""
+
+
+class CalibrationDataError(ParameterError):
+    """Endurance data that cannot be fitted (missing column, bad value, too few rows, ...)."""
+
+
+class UsageError(FatiguePinError, ValueError):
+    """A command line that does not parse (unknown command or option, bad value)."""
+
+
+class CompileError(FatiguePinError, RuntimeError):
+    """Generated code could not be compiled (compiler missing or failing)."""

@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
-from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.errors import CalibrationDataError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, check_output_file
 from fatigue_pin.fatigue.models import XiaFatigue
 
@@ -60,10 +60,6 @@ _BIG_ET = 1e9  # s: stands for an infinite predicted endurance time inside the r
 #: Endurance times the fit accepts (s): from a millisecond (rates F ~ 1 / ET stay far from overflow)
 #: up to ``_BIG_ET`` (which stands for an infinite time).
 ET_RANGE = (1e-3, _BIG_ET)
-
-
-class CalibrationDataError(ParameterError):
-    """Endurance data that cannot be fitted (missing column, bad value, too few rows, ...)."""
 
 
 @dataclass(frozen=True)

@@ -40,15 +40,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fatigue_pin.core.errors import FatiguePinError
+from fatigue_pin.core.errors import FatiguePinError, SweepError
 from fatigue_pin.io.study import Study, StudyError
 
 #: Keys a sweep file may hold at its top level.
 SWEEP_KEYS = ("base", "grid", "cases", "description")
-
-
-class SweepError(FatiguePinError, ValueError):
-    """A sweep file that cannot be used, or a sweep output folder that cannot receive results."""
 
 
 # -- sweep files -----------------------------------------------------------------------------------
