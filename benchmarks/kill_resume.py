@@ -81,12 +81,13 @@ CHILD = textwrap.dedent(
 
     R.clone, R._compact, R._write_run, FS.fsync, os.replace = clone, compact, group, fsync, replace
 
-    def wrote(module, name, tag):
+    def wrote(module, name, tag, counts=lambda *args: True):
         real = getattr(module, name)
 
         def call(*args, **kwargs):
             out = real(*args, **kwargs)
-            say("WROTE " + tag)
+            if counts(*args):
+                say("WROTE " + tag)
             return out
 
         setattr(module, name, call)
@@ -96,10 +97,17 @@ CHILD = textwrap.dedent(
     if kind == "max-cycles":
         wrote(R.ResultFile, "write_table", "search")
     else:
-        wrote(R.ResultFile, "write", "window")
+        # a window's write; the run stored again as interrupted (SIGINT, SIGTERM) adds no window
+        wrote(R.ResultFile, "write", "window", lambda store, run: not run.attrs.get("interrupted"))
     study = curl_study(kind, max_cycles=n, intervals_per_cycle=10, substeps=2, solver={"compile": False})
-    say("START")
-    run_study(study, out, name="run", resume=True, progress=lambda line: say("P " + line))
+    from fatigue_pin.core.signals import Interrupted, watch
+    try:
+        with watch():  # SIGINT, SIGTERM: Interrupted, exit code 130, 143 (as fatigue-pin does)
+            say("START")
+            run_study(study, out, name="run", resume=True, progress=lambda line: say("P " + line))
+    except Interrupted as exc:
+        say("INTERRUPTED")
+        sys.exit(exc.exit_code)
     say("FINISHED")
     """
 )
@@ -127,11 +135,19 @@ def _env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": home + os.pathsep + os.environ.get("PYTHONPATH", ""), "OMP_NUM_THREADS": "1"}
 
 
-def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tuple[int, bool, str | None, float]:
+#: Exit codes of a child stopped by each signal: SIGKILL kills it; SIGINT and SIGTERM it handles.
+EXIT_CODES = {signal.SIGKILL: -signal.SIGKILL, signal.SIGINT: 130, signal.SIGTERM: 143}
+
+
+def segment(kind: str, out: Path, n: int, kill: tuple | None) -> tuple[int, bool, str | None, float]:
     """Run the child once. ``kill``: None (to the end), ("io", k): SIGKILL at its k-th write step,
     ("at", step): at the first announcement of a write step (``copy``, ``compact``, ``h5``,
-    ``h5-written``, ``fsync``, ``rename``), ("time", s): SIGKILL s seconds after it has started working. Returns (items it reported
-    written, killed, the last write step it announced before dying or None, seconds of work)."""
+    ``h5-written``, ``fsync``, ``rename``), ("time", s): SIGKILL s seconds after it has started
+    working, ("after-write", s): s seconds after its first write (during the next solve); a third
+    item names another signal (SIGINT, SIGTERM: the child must exit with 130, 143).
+    Returns (items it reported written, killed, the last write step it announced before dying or
+    None, seconds of work)."""
+    sig = kill[2] if kill is not None and len(kill) > 2 else signal.SIGKILL
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(out), str(n)], stdout=subprocess.PIPE,
                             stderr=subprocess.DEVNULL, text=True, env=_env(), cwd=out.parent)
@@ -142,23 +158,27 @@ def segment(kind: str, out: Path, n: int, kill: tuple[str, float] | None) -> tup
         if line.startswith("START"):
             t0 = time.perf_counter()
             if kill is not None and kill[0] == "time":
-                timer = threading.Timer(kill[1], lambda: proc.poll() is None and os.kill(proc.pid, signal.SIGKILL))
+                timer = threading.Timer(kill[1], lambda: proc.poll() is None and os.kill(proc.pid, sig))
                 timer.start()
         elif line.startswith("WROTE window") or line.startswith("WROTE search"):
             written += 1
             last = None
+            if kill is not None and kill[0] == "after-write" and written == 1:  # during the next solve
+                timer = threading.Timer(kill[1], lambda: proc.poll() is None and os.kill(proc.pid, sig))
+                timer.start()
         elif line.startswith("IO "):
             steps += 1
             last = line.split()[1]
             if kill is not None and ((kill[0] == "io" and steps == int(kill[1])) or (kill[0] == "at" and last == kill[1])):
-                os.kill(proc.pid, signal.SIGKILL)
-                break
+                os.kill(proc.pid, sig)
+                if sig == signal.SIGKILL:
+                    break
         elif line.startswith("FINISHED"):
             finished = True
     proc.wait()
     if timer is not None:
         timer.cancel()
-    killed = proc.returncode == -signal.SIGKILL
+    killed = proc.returncode == EXIT_CODES[sig] and not finished
     if not killed and (proc.returncode != 0 or not finished):
         raise RuntimeError(f"the {kind} child failed with exit code {proc.returncode}")
     return written, killed, last if killed else None, time.perf_counter() - t0

@@ -42,7 +42,7 @@ def _noop() -> None:
 def _jobs(cycles: list[int], trivial: bool = False):
     from conftest import small_curl
 
-    from fatigue_pin.sweep.jobs import Sweep
+    from fatigue_pin.sweep.plan import Sweep
 
     base = small_curl("full")
     grid = {"horizon.cycles": cycles, "fatigue.S": [10.0, 0.0], "costs.torque.weight": [1.0, 2.0]}
@@ -55,7 +55,8 @@ def _jobs(cycles: list[int], trivial: bool = False):
 def _sweep(jobs, workers: int) -> dict[str, float]:
     from distributed import Client
 
-    from fatigue_pin.sweep.jobs import local_cluster, run_sweep
+    from fatigue_pin.sweep.cluster import local_cluster
+    from fatigue_pin.sweep.runner import run_sweep
 
     t0 = time.perf_counter()
     with local_cluster(workers) as cluster, Client(cluster) as client:

@@ -16,20 +16,37 @@ __all__ = ["register"]
 
 def _loads(text: str) -> list[float]:
     try:
-        return [float(x) for x in text.split(",") if x.strip()]
+        loads = [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--loads {text!r}: expected comma-separated fractions, e.g. 0.2,0.5,0.8") from None
+        loads = []
+    if not loads:
+        raise argparse.ArgumentTypeError(f"--loads {text!r}: expected comma-separated fractions, e.g. 0.2,0.5,0.8")
+    return loads
+
+
+def _cycles(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"--max-cycles {text!r}: expected an integer number of cycles >= 1")
+    return n
 
 
 def _cmd_endurance(args: argparse.Namespace) -> int:
-    from fatigue_pin.fatigue.endurance import DEFAULT_LOADS, check_output_dir, format_comparison, format_table, run_endurance
     from fatigue_pin.core.errors import ParameterError
+    from fatigue_pin.core.progress import Reporter
+    from fatigue_pin.fatigue.endurance import DEFAULT_LOADS
+    from fatigue_pin.core.files import check_output_dir
+    from fatigue_pin.fatigue.endurance_report import format_comparison, format_table, run_endurance
 
     check_output_dir(args.out)
     if args.duty_cycle < 1.0 and args.cycle_s is None:
         raise ParameterError(f"--duty-cycle {args.duty_cycle}: expected --cycle-s (the cycle length, s) as well")
     tab, comparison, paths = run_endurance(
-        args.out, args.preset, args.loads or DEFAULT_LOADS, args.duty_cycle, args.cycle_s, compare=not args.no_compare
+        args.out, args.preset, DEFAULT_LOADS if args.loads is None else args.loads, args.duty_cycle, args.cycle_s,
+        compare=not args.no_compare, max_cycles=args.max_cycles, progress=Reporter.for_stream(),
     )
     print(format_table(tab))
     if comparison:
@@ -68,6 +85,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--loads", type=_loads, default=None, help="target loads, comma-separated (default 0.1,...,0.9)")
     p.add_argument("--duty-cycle", type=float, default=1.0, help="fraction of each cycle at the target load (default 1: sustained)")
     p.add_argument("--cycle-s", type=float, default=None, help="cycle length (s) of an intermittent task")
+    p.add_argument("--max-cycles", type=_cycles, default=10_000,
+                   help="most cycles simulated per load of an intermittent task (default 10000; a progress line every 1000)")
     p.add_argument("--no-compare", action="store_true", help="skip the per-joint comparison with Frey-Law & Avin (2010)")
     p.set_defaults(func=_cmd_endurance)
 

@@ -14,11 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fatigue_pin.core.errors import FatiguePinError
-
-
-class UsageError(FatiguePinError, ValueError):
-    """A command line that does not parse (unknown command or option, bad value)."""
+from fatigue_pin.core.errors import FatiguePinError, UsageError
+from fatigue_pin.core.signals import Interrupted, watch
 
 
 # -- options whose default belongs to a settings class or a function of the package -----------------
@@ -181,7 +178,7 @@ def _cmd_max_cycles(args: argparse.Namespace) -> int:
 def _cmd_run(args: argparse.Namespace) -> int:
     from fatigue_pin.io.study import Study, parse_changes
 
-    study = Study.from_file(args.study)
+    study = Study.from_file(args.study, args.run)
     if args.set:
         study = study.replace(parse_changes(args.set))
     return _run(study, args)
@@ -262,7 +259,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from fatigue_pin.sweep.jobs import sweep_command
+    from fatigue_pin.sweep.runner import sweep_command
 
     return sweep_command(args.sweep, args.out, scheduler=args.scheduler, slurm=args.slurm, workers=args.workers,
                          queue=args.queue, walltime=args.walltime, cores=args.cores, memory=args.memory,
@@ -304,7 +301,7 @@ def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
     _option(p, "--max-iter", type=int, default_from=(_SOLVER, "max_iter"), help="IPOPT iteration limit per solve")
     p.add_argument("--no-compile", action="store_true", help="evaluate the NLP without generating and compiling C")
     _option(p, "--print-level", type=int, default_from=(_SOLVER, "print_level"), help="IPOPT print level")
-    p.add_argument("--urdf", type=Path, default=None, help="URDF file (default: bundled arm26)")
+    p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     _add_output_arguments(p)
 
 
@@ -317,7 +314,7 @@ def _add_output_arguments(p: argparse.ArgumentParser) -> None:
 def _add_model_commands(sub: Any) -> None:
     """info, forward."""
     p = sub.add_parser("info", help="print the model summary: joints, masses, bounds, holding torques")
-    p.add_argument("--urdf", type=Path, default=None, help="URDF file (default: bundled arm26)")
+    p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("forward", help="forward studies of the 3CC / 3CC-S fatigue model (paper section 2)")
@@ -332,6 +329,7 @@ def _add_study_commands(sub: Any) -> None:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="change a key of the study, e.g. --set fatigue.S=0 --set horizon.max_cycles=5 (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run (sliding) or search (max-cycles) stored in --out")
+    p.add_argument("--run", default=None, metavar="NAME", help="with an HDF5 result file as study: the run whose study to use")
     _add_output_arguments(p)
     p.set_defaults(func=_cmd_run)
 
@@ -466,7 +464,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args([a for a in argv if a != "--debug"])
         args.debug = debug
-        return int(args.func(args) or 0)
+        with watch():  # SIGINT and SIGTERM: Interrupted, exit code 130 and 143
+            return int(args.func(args) or 0)
     except (FatiguePinError, OSError) as exc:  # OSError: a file problem no check foresaw
         if debug:
             raise
@@ -474,9 +473,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{exc.strerror}: {exc.filename!r}" if exc.filename else exc.strerror
         print("fatigue-pin: error: " + " ".join(text.split()), file=sys.stderr)  # one line
         return 2
-    except KeyboardInterrupt:
-        print("fatigue-pin: interrupted; finished work is in the output file", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Interrupted (SIGINT, SIGTERM), or Ctrl-C outside a watch
+        code = exc.exit_code if isinstance(exc, Interrupted) else 130
+        what = exc.args[0] if isinstance(exc, Interrupted) else "interrupted"
+        print(f"fatigue-pin: {what}; finished work (windows, searched N) is in the output file, the interrupted "
+              "solve is not (--resume continues)", file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":

@@ -2,7 +2,13 @@
 
 
 class FatiguePinError(Exception):
-    """Base class of all fatigue_pin errors."""
+    """Base class of all fatigue_pin errors. A message is one line: line breaks that reach it
+    from the input (a key or a value holding a newline) are written ``\\n``."""
+
+    def __init__(self, *args: object) -> None:
+        if args and isinstance(args[0], str):
+            args = (args[0].replace("\r", "\\r").replace("\n", "\\n"),) + args[1:]
+        super().__init__(*args)
 
 
 class ModelError(FatiguePinError, ValueError):
@@ -37,3 +43,19 @@ class StudyError(FatiguePinError, ValueError):
 
 class PresetFileError(ParameterError):
     """A parameter file (JSON) that cannot be used as a preset."""
+
+
+class SweepError(FatiguePinError, ValueError):
+    """A sweep file that cannot be used, or a sweep output folder that cannot receive results."""
+
+
+class CalibrationDataError(ParameterError):
+    """Endurance data that cannot be fitted (missing column, bad value, too few rows, ...)."""
+
+
+class UsageError(FatiguePinError, ValueError):
+    """A command line that does not parse (unknown command or option, bad value)."""
+
+
+class CompileError(FatiguePinError, RuntimeError):
+    """Generated code could not be compiled (compiler missing or failing)."""

@@ -65,13 +65,22 @@ def clone(src: Path, dst: Path) -> None:
     shutil.copyfile(src, dst)  # sendfile / copy_file_range on Linux
 
 
+def through_links(path: str | Path) -> Path:
+    """The file that writing ``path`` means: ``path`` itself, or, for a symbolic link (a chain of
+    them, or one whose target does not exist yet), the file it points to, so that an atomic
+    replace writes through the link instead of replacing the link by a regular file."""
+    path = Path(path)
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
 def atomic_write(path: Path, write: Callable[[Path], None], tmp: Path | None = None) -> Path:
     """Make ``path`` the file that ``write(tmp)`` writes at a temporary path beside it: the
     temporary file is fsynced and renamed over ``path`` (``os.replace``), then the folder is
     fsynced. On any error the temporary file is removed and ``path`` is unchanged. ``tmp``: the
     temporary path (default: a new unique name beside ``path``; a writer that holds the file's
-    lock may name it)."""
-    path = Path(path)
+    lock may name it). A symbolic link is written through (:func:`through_links`): the link
+    stays, its target changes."""
+    path = through_links(path)
     if tmp is None:
         fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         os.close(fd)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.task import check_horizon
 from fatigue_pin.ocp.transcription import IntervalFunctions, Ocp, OcpSolution, Transcription
 
 from fatigue_pin.core.progress import Progress, as_reporter
@@ -42,6 +43,7 @@ def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | N
     """Build and solve one full-horizon OCP of ``n_cycles`` cycles (``progress``: a Reporter or
     a line callback; default quiet). ``end_tolerance``: bound q and qdot at the last node to the
     initial state +- this fraction of their range (the authors' full horizon does, with 0.01)."""
+    check_horizon(problem.task, n_cycles)
     rep = as_reporter(progress)
     rep.line(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
     ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles, end_tolerance)

@@ -117,7 +117,8 @@ def _structure(problem: Problem) -> tuple:
 
 def phase_shifted(problem: Problem, shift: int) -> Problem:
     """The problem whose horizon starts ``shift`` intervals into the cycle: every task item at a
-    phase ``at`` moves to ``at - shift / n`` (mod 1)."""
+    phase ``at`` moves to ``at - shift / n`` (mod 1), and the task's ``q_init`` (the start of a
+    cycle) is dropped: a shifted window starts from the state it is given."""
     task = problem.task
     n = task.intervals_per_cycle
     shift %= n
@@ -130,7 +131,9 @@ def phase_shifted(problem: Problem, shift: int) -> Problem:
             items.append(item)
         else:
             items.append(dataclasses.replace(item, at=((int(round(at * n)) - shift) % n) / n))
-    return dataclasses.replace(problem, task=dataclasses.replace(task, items=tuple(items)))
+    # q_init is the start of the cycle, not of a shifted window (every window gets its measured
+    # state as x_init): dropped, so that it is not checked against the shifted phase-0 targets
+    return dataclasses.replace(problem, task=dataclasses.replace(task, items=tuple(items), q_init=None))
 
 
 class WindowOcp(Ocp):

@@ -13,13 +13,14 @@ HDF5 one), so the drivers do not depend on the file format.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from fatigue_pin.core.errors import ResultFileError
+from fatigue_pin.core.errors import ParameterError, ResultFileError
 
 if TYPE_CHECKING:
     from fatigue_pin.ocp.transcription import Ocp, OcpSolution
@@ -90,6 +91,50 @@ class RunResult:
         if self.fatigued is None:
             raise ResultFileError(f"run {self.name!r}: the fatigued fraction of every half (fatigued, (nodes, halves)) "
                                   "is required; the reader supplies it for files that predate it")
+
+    def check_shapes(self) -> None:
+        """Refuse a run whose arrays disagree (a damaged or hand-edited file): every array 2-D
+        where a table is expected, nodes = intervals + 1 = cycles * intervals_per_cycle + 1,
+        and as many columns as labels. Raises ResultFileError naming the arrays."""
+        def bad(what: str) -> ResultFileError:
+            return ResultFileError(f"run {self.name!r}: {what}; expected the arrays of one run (docs/results.md), "
+                                   "the file is damaged or was edited")
+
+        arrays = {"q": self.q, "qdot": self.qdot, "tau_plus": self.tau_plus, "tau_minus": self.tau_minus,
+                  "cycle_costs": self.cycle_costs, "torque_limits": self.torque_limits, "fatigued": self.fatigued,
+                  **self.fatigue}
+        if np.ndim(self.t) != 1:
+            raise bad(f"t has shape {np.shape(self.t)}")
+        for key, a in arrays.items():
+            if np.ndim(a) != 2:
+                raise bad(f"{key} has shape {np.shape(a)}, not a table")
+            if not np.issubdtype(np.asarray(a).dtype, np.number):
+                raise bad(f"{key} holds {np.asarray(a).dtype} values, not numbers")
+        nodes, cycles = self.t.shape[0], self.cycle_costs.shape[0]
+        rows = {"q": nodes, "qdot": nodes, "fatigued": nodes, **{k: nodes for k in self.fatigue},
+                "tau_plus": max(nodes - 1, 0), "tau_minus": max(nodes - 1, 0), "torque_limits": cycles}
+        wrong = {k: arrays[k].shape[0] for k, n in rows.items() if arrays[k].shape[0] != n}
+        if wrong:
+            raise bad(f"t has {nodes} nodes and cycle_costs {cycles} cycles, but the rows of {wrong} disagree")
+        if cycles and (nodes - 1) % cycles:
+            raise bad(f"{nodes - 1} intervals do not make {cycles} equal cycles")
+        columns = {"q": len(self.joint_names), "qdot": len(self.joint_names), "tau_plus": len(self.joint_names),
+                   "tau_minus": len(self.joint_names), "cycle_costs": len(self.cost_terms), "fatigued": len(self.actuator_names),
+                   "torque_limits": len(self.actuator_names), **{k: len(self.actuator_names) for k in self.fatigue}}
+        wrong = {k: arrays[k].shape[1] for k, n in columns.items() if arrays[k].shape[1] != n}
+        if wrong:
+            raise bad(f"the columns of {wrong} disagree with the labels ({len(self.joint_names)} joints, "
+                      f"{len(self.actuator_names)} halves, {len(self.cost_terms)} cost terms)")
+
+    def require_cycles(self, what: str) -> None:
+        """Refuse to ``what`` (plot, replay, verify) a run without a cycle: a sliding run whose
+        first window failed keeps no cycle (its last iterate is the ``_failed_window`` run)."""
+        if self.n_cycles == 0 or self.t.size == 0:
+            status = self.attrs.get("status", "")
+            raise ResultFileError(
+                f"run {self.name!r} has no cycle to {what}: no window converged (status {status!s}); expected a run "
+                f"with cycles (IPOPT's last iterate of its failed window is the run {failed_window_name(self.name)!r})"
+            )
 
     @property
     def signed_limits(self) -> np.ndarray:
@@ -165,6 +210,45 @@ def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, inter
 #: Suffix of the run that keeps a sliding run's failed window (IPOPT's last iterate), e.g.
 #: ``sliding/torque_S0_failed_window``.
 FAILED_WINDOW_SUFFIX = "_failed_window"
+#: Suffix of the run that holds a sliding run's windows while it replaces a run of the same name
+#: (the old run stays until the new one is complete), e.g. ``sliding/torque_S0_in_progress``.
+IN_PROGRESS_SUFFIX = "_in_progress"
+
+
+#: Groups of a result file that hold no user run: search tables and the searches' step runs.
+RESERVED_GROUPS = ("search", "searched")
+#: The grammar of run names, as said in messages and docs/results.md.
+RUN_NAME_GRAMMAR = ("segments of letters, digits and _ - . + = , separated by '/' (none empty, none starting with "
+                    "'.'), at most 200 characters, not under search/ or searched/, not ending with _failed_window or "
+                    "_in_progress")
+_SEGMENT = re.compile(r"[A-Za-z0-9_+=,-][A-Za-z0-9_.+=,-]*")
+
+
+def check_run_name(name: object, internal: bool = False) -> str:
+    """``name`` once it follows :data:`RUN_NAME_GRAMMAR` (checked before any work).
+
+    A run name is a path of groups in a result file: ``full/torque_S10``. Empty segments
+    (``a//b``, a leading or trailing ``/``), ``.`` and ``..``, characters HDF5 or a shell treat
+    specially, and the groups the file keeps for itself (:data:`RESERVED_GROUPS`, the
+    ``_failed_window`` runs) would let a run land on something else and delete it.
+
+    Args:
+        internal: allow the names the drivers make themselves (``searched/<table>/N<n>``,
+            ``<run>_failed_window``).
+
+    Raises:
+        ParameterError: naming the name and the grammar.
+    """
+    bad = ParameterError(f"run name {name!r}: expected {RUN_NAME_GRAMMAR}")
+    if not isinstance(name, str) or not name or len(name) > 200:
+        raise bad
+    segments = name.split("/")
+    if not all(_SEGMENT.fullmatch(s) for s in segments):
+        raise bad
+    own = name.endswith(FAILED_WINDOW_SUFFIX) or name.endswith(IN_PROGRESS_SUFFIX)  # the drivers name these
+    if segments[0] == "search" or not internal and (segments[0] in RESERVED_GROUPS or own):
+        raise bad
+    return name
 
 
 class RunStore(Protocol):
@@ -191,6 +275,15 @@ class RunStore(Protocol):
     def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
         """Add or replace search table ``name``: one row per solve (:data:`SEARCH_DTYPE` fields)."""
         ...
+
+    def delete(self, name: str) -> None:
+        """Remove run ``name`` (only a run; nothing if there is none)."""
+        ...
+
+
+def in_progress_name(name: str) -> str:
+    """Run name under which a sliding run replacing the run ``name`` keeps its windows until it is complete."""
+    return f"{name}{IN_PROGRESS_SUFFIX}"
 
 
 def failed_window_name(name: str) -> str:

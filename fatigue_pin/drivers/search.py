@@ -20,6 +20,7 @@ from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import RunResult, RunStore, solution_to_run
 from fatigue_pin.ocp.guesses import resample_guess
+from fatigue_pin.ocp.task import check_horizon
 from fatigue_pin.ocp.problem import Problem, StateLayout
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.transcription import Ocp, OcpSolution, Transcription
@@ -210,6 +211,8 @@ def max_repetitions(
     infeasibility (IPOPT's certificate, a failed restoration, a growing constraint violation) is
     told from non-convergence (iteration or time limit) and from a broken step computation.
     """
+    if n_max is not None and problem is not None:  # (tests stand in a fake builder for the problem)
+        check_horizon(problem.task, n_max, "n_max")
     rep = as_reporter(progress)
     search = _Search(OcpBuilder(problem, transcription, solver, guess, rep), guess, retry, end_tolerance, store, name, study,
                      dict(labels or {}), rep)

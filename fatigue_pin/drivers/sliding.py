@@ -30,8 +30,9 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError, ResultFileError
 from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, setting
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.core.signals import Interrupted, signal_name
 from fatigue_pin.drivers.full import OcpBuilder
-from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, run_attributes, to_run_result
+from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, in_progress_name, run_attributes, to_run_result
 from fatigue_pin.ocp.guesses import shifted_window_guess
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
@@ -208,7 +209,9 @@ class SlidingHorizon:
         t = first_cycle * ocp.task.cycle_duration + np.arange(sol.x.shape[0]) * ocp.task.dt
         return to_run_result(ocp, t, sol.x, sol.u, sol.cycle_costs, name, attrs, np.zeros(self.sliding.window), study=self.study)
 
-    def _run_result(self, state: _State, name: str, build_time: float) -> RunResult:
+    def _run_result(self, state: _State, name: str, build_time: float, interrupted: str = "") -> RunResult:
+        """The run of ``state``; ``interrupted`` (a signal's name): stored as interrupted, neither
+        finished nor converged."""
         ocp = self.ocp
         attrs = run_attributes(ocp, "sliding", self.labels)
         attrs["fingerprint"] = self.fingerprint()
@@ -230,6 +233,8 @@ class SlidingHorizon:
             converged_windows=converged,
             median_real_time_factor=median_real_time_factor(table, self._advanced_s),
         )
+        if interrupted:
+            attrs.update(interrupted=interrupted, finished=False, converged=False)
         t = np.arange(state.x.shape[0]) * ocp.task.dt
         return to_run_result(ocp, t, state.x, state.u, state.costs, name, attrs, state.cycle_wall, table, study=self.study)
 
@@ -308,10 +313,11 @@ class SlidingHorizon:
         """
         name = name or "sliding/run"
         ocp, n, A, K = self.ocp, self._n, self.sliding.advance, self.sliding.window
-        state = self._restore(store, name) if (resume and store is not None) else None
+        work = self._working_name(store, name, resume)
+        state = self._restore(store, work) if (resume and store is not None) else None
         rep = as_reporter(progress)
         if resume and state is not None:
-            rep.line(f"resuming {name!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
+            rep.line(f"resuming {work!r}: {len(state.windows)} windows done, {state.n_cycles} cycles")
         fatigued_rows = ocp.layout.fatigued_rows()
         bar = rep.bar(self.sliding.max_cycles, "cycles kept", "cycle")
         bar.update(state.n_cycles if state is not None else 0)
@@ -323,7 +329,12 @@ class SlidingHorizon:
             warm = self._warm_start(last) if (self.sliding.warm_start and last is not None) else None
             if warm is not None:
                 guess = ocp.unflatten(warm.x)
-            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
+            try:
+                sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
+            except Interrupted as exc:  # the windows done so far stay, marked interrupted; --resume continues
+                if store is not None and state is not None:
+                    store.write(self._run_result(state, work, ocp.build_time_s, interrupted=signal_name(exc)))
+                raise
             last = sol.nlp if sol.success else None
             solved += 1
             index = len(state.windows) if state is not None else 0
@@ -340,12 +351,29 @@ class SlidingHorizon:
             if store is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
                 store.write(self._failed_window(sol, first_cycle, failed_window_name(name)))
             if store is not None:
-                store.write(self._run_result(state, name, ocp.build_time_s))
+                store.write(self._run_result(state, work, ocp.build_time_s))
             bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
         bar.close()
         if state is None:
             raise RuntimeError("no window was solved")
-        result = self._run_result(state, name, ocp.build_time_s)
+        if state.done and work != name and store is not None:  # complete: now it replaces the old run
+            store.write(self._run_result(state, name, ocp.build_time_s))
+            store.delete(work)
+        result = self._run_result(state, name if state.done else work, ocp.build_time_s)
         rep.line(f"median real-time factor {result.attrs['median_real_time_factor']:.2f} "
                  f"(s of solving per s of motion advanced, {result.attrs['converged_windows']} converged windows)")
         return result
+
+    @staticmethod
+    def _working_name(store: RunStore | None, name: str, resume: bool) -> str:
+        """Where the windows are kept as they come: ``name``, or, while ``store`` holds a run of
+        that name that this run is to replace (not resume), :func:`in_progress_name` of it, so
+        that the old run is replaced only by a complete one. A resume continues the run in
+        progress if there is one."""
+        if store is None:
+            return name
+        runs = store.runs()
+        partial = in_progress_name(name)
+        if resume:
+            return partial if partial in runs else name
+        return partial if name in runs else name

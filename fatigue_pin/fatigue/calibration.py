@@ -1,6 +1,7 @@
 """Fit Xia's 3CC (F, R) or 3CC-r (F, R, r) to measured endurance times.
 
-Data: a CSV file with columns ``target_load`` (fraction of maximum, in (0, 1)) and
+Data: a CSV file (UTF-8, a byte-order mark allowed; separated by commas, or by ``;`` with decimal
+commas or by tabs, as Excel writes them; each column once) with columns ``target_load`` (fraction of maximum, in (0, 1)) and
 ``endurance_time_s`` (s, > 0), and optionally ``duty_cycle`` (in (0, 1]; 1 or empty: sustained) and
 ``cycle_s`` (s, > 0; needed when ``duty_cycle < 1``). Each row is one task's endurance time.
 
@@ -34,7 +35,7 @@ from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
-from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.errors import CalibrationDataError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, check_output_file
 from fatigue_pin.fatigue.models import XiaFatigue
 
@@ -54,11 +55,11 @@ __all__ = [
 #: Calibrated model -> its fitted parameters.
 MODELS: dict[str, tuple[str, ...]] = {"3cc": ("F", "R"), "3cc-r": ("F", "R", "r")}
 _COLUMNS = ("target_load", "endurance_time_s", "duty_cycle", "cycle_s")
+_LOG_LIMIT = 200.0  # the fit's log-parameters stay in [-200, 200] (exp of them is finite)
 _BIG_ET = 1e9  # s: stands for an infinite predicted endurance time inside the residuals
-
-
-class CalibrationDataError(ParameterError):
-    """Endurance data that cannot be fitted (missing column, bad value, too few rows, ...)."""
+#: Endurance times the fit accepts (s): from a millisecond (rates F ~ 1 / ET stay far from overflow)
+#: up to ``_BIG_ET`` (which stands for an infinite time).
+ET_RANGE = (1e-3, _BIG_ET)
 
 
 @dataclass(frozen=True)
@@ -126,8 +127,9 @@ def _check_row(row: int, tl: float, et: float, dc: float, cs: float, source: str
             f"{at}: target_load = 1.0: the 3CC with instant activation predicts ET = 0 at TL = 1 (any fatigue stops the "
             "task), so it cannot be fitted; expected a load < 1"
         )
-    if not (math.isfinite(et) and et > 0.0):
-        raise CalibrationDataError(f"{at}: endurance_time_s = {et!r}: expected a finite time > 0 (s)")
+    if not (math.isfinite(et) and ET_RANGE[0] <= et < ET_RANGE[1]):
+        raise CalibrationDataError(f"{at}: endurance_time_s = {et!r}: expected a time in [{ET_RANGE[0]:g}, {ET_RANGE[1]:g}) s "
+                                   "(beyond it the fit's rates over- or underflow)")
     if not (math.isfinite(dc) and 0.0 < dc <= 1.0):
         raise CalibrationDataError(f"{at}: duty_cycle = {dc!r}: expected a fraction in (0, 1] (1 or empty: sustained)")
     if dc < 1.0 and not (math.isfinite(cs) and cs > 0.0):
@@ -145,12 +147,19 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
     if not p.is_file():
         raise CalibrationDataError(f"endurance data {str(p)!r} does not exist (or is not a file): expected a CSV file")
     try:
-        with p.open(newline="") as fh:
-            reader = csv.DictReader(fh)
+        with p.open(newline="", encoding="utf-8-sig") as fh:  # utf-8-sig: a byte-order mark (Excel) is skipped
+            first = fh.readline()
+            fh.seek(0)
+            # Excel writes ';' where the decimal mark is a comma, and tab-separated files are common
+            delimiter = max(",;\t", key=first.count) if first.count(",") == 0 else ","
+            reader = csv.DictReader(fh, delimiter=delimiter)
             header = [h.strip() for h in (reader.fieldnames or [])]
             rows = list(reader)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise CalibrationDataError(f"endurance data {str(p)!r} is not a readable CSV file ({exc})") from None
+    twice = sorted({h for h in header if header.count(h) > 1})
+    if twice:
+        raise CalibrationDataError(f"{p.name}: column(s) {twice} appear more than once (columns: {header}): expected each column once")
     for col in _COLUMNS[:2]:
         if col not in header:
             raise CalibrationDataError(
@@ -169,7 +178,7 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
                 values[col].append(math.nan)
                 continue
             try:
-                values[col].append(float(text))
+                values[col].append(float(text.replace(",", ".") if delimiter == ";" else text))  # ';': decimal commas
             except ValueError:
                 raise CalibrationDataError(f"{p.name}: row {i}: {col} = {text!r}: expected a number") from None
     if not rows:
@@ -199,8 +208,12 @@ def predict(params: dict[str, float], data: EnduranceData, intermittent: str = "
 
 
 def _residuals(x: np.ndarray, names: tuple[str, ...], data: EnduranceData, **kw) -> np.ndarray:
-    params = dict(zip(names, np.exp(x)))
-    et = predict(params, data, **kw)
+    params = dict(zip(names, np.exp(np.clip(x, -_LOG_LIMIT, _LOG_LIMIT))))
+    try:
+        with np.errstate(all="ignore"):
+            et = predict(params, data, **kw)
+    except ArithmeticError:  # a step of the fit far out of range: an infinite predicted time
+        et = np.full(data.n, _BIG_ET)
     et = np.where(np.isfinite(et) & (et > 0), et, _BIG_ET)
     return np.log(data.endurance_time_s) - np.log(np.minimum(et, _BIG_ET))
 
@@ -342,8 +355,16 @@ def calibrate(
     kw = dict(intermittent=intermittent, LD=LD, LR=LR)
     x0 = _start(names, data, **kw)
     diff_step = 1e-6 if intermittent == "closed-form" and not data.intermittent.any() else 1e-4
-    sol = least_squares(_residuals, x0, args=(names, data), kwargs=kw, method="trf", diff_step=diff_step,
-                        x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
+    try:
+        with np.errstate(all="ignore"):
+            sol = least_squares(_residuals, x0, args=(names, data), kwargs=kw, method="trf", diff_step=diff_step,
+                                x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        raise CalibrationDataError(f"the {model} fit to {data.source or 'the endurance data'} failed ({exc}); "
+                                   "expected endurance times a 3CC model can reach with finite rates") from None
+    if not np.all(np.isfinite(sol.x)) or not np.all(np.isfinite(sol.fun)):
+        raise CalibrationDataError(f"the {model} fit to {data.source or 'the endurance data'} ended at non-finite parameters "
+                                   f"{dict(zip(names, np.exp(sol.x).tolist()))}; expected data a 3CC model can reach with finite rates")
     params = dict(zip(names, (float(v) for v in np.exp(sol.x))))
     et_fit = predict(params, data, **kw)
     res = sol.fun

@@ -30,22 +30,22 @@ Heitsman (2012) were fitted to these curves. The coefficients agree with three i
 transcriptions of the table, MyoSuite's among them (``docs/source/fatigue_validation.rst``,
 MyoHub/myosuite at commit 416c185ebc7ee3504500f70d1e8f2d2428c38a6d).
 :func:`compare_frey_law_avin` sets them side by side.
+
+Tables as text, the HDF5 file and the figure: :mod:`fatigue_pin.fatigue.endurance_report`.
 """
 
 from __future__ import annotations
 
-import datetime
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
 from fatigue_pin.core.errors import FatiguePinError, OutputLocationError, ParameterError
-from fatigue_pin.core.files import atomic_write, check_output_dir
+from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import XiaFatigue
 
@@ -53,6 +53,7 @@ __all__ = [
     "FREY_LAW_AVIN_2010",
     "FREY_LAW_AVIN_SOURCE",
     "DEFAULT_LOADS",
+    "MAX_CYCLES",
     "OutputLocationError",
     "sustained_et_closed_form",
     "intermittent_et_closed_form",
@@ -61,12 +62,6 @@ __all__ = [
     "EnduranceTable",
     "endurance_table",
     "compare_frey_law_avin",
-    "format_table",
-    "format_comparison",
-    "write_h5",
-    "plot_endurance",
-    "check_output_dir",
-    "run_endurance",
 ]
 
 #: Frey-Law & Avin (2010) pooled power models ``ET = b0 * TL^b1`` (ET in s, TL in (0, 1]): joint -> (b0, b1).
@@ -85,6 +80,11 @@ FREY_LAW_AVIN_SOURCE = (
     "Frey-Law & Avin (2010), Endurance time is joint-specific: a modelling and meta-analysis investigation, "
     "Ergonomics 53:109-129, doi:10.1080/00140130903389068, pooled power models ET = b0 * TL^b1"
 )
+
+#: Most cycles of an intermittent task :func:`endurance_time` simulates (a few ms each).
+MAX_CYCLES = 10_000
+#: Cycles between two progress lines of :func:`endurance_time`.
+PROGRESS_EVERY = 1000
 
 #: Target loads of the tables: 0.1, 0.2, ..., 0.9.
 DEFAULT_LOADS: tuple[float, ...] = tuple(round(0.1 * k, 1) for k in range(1, 10))
@@ -159,8 +159,8 @@ def intermittent_et_closed_form(
     b = e_off * A * (1.0 - e_on)
     s_star = b / (1.0 - a)
     # Cycle k fails iff its on-end value A + (s_k - A) e_on >= L, i.e. s_k >= s_crit.
-    s_crit = (L - A * (1.0 - e_on)) / e_on
     s0 = 0.0
+    s_crit = (L - A * (1.0 - e_on)) / e_on if e_on > 0.0 else -math.inf  # e_on = 0: each "on" part reaches A > L
     if s0 >= s_crit:
         k = 0
     elif s_star <= s_crit:
@@ -208,6 +208,8 @@ def endurance_time(
     rtol: float = 1e-8,
     atol: float = 1e-10,
     steady_stop: bool = True,
+    max_cycles: int = MAX_CYCLES,
+    progress: Progress = None,
 ) -> float:
     """Endurance time (s) of a task at target load ``TL`` by forward simulation of ``model``.
 
@@ -219,8 +221,13 @@ def endurance_time(
     once the end-of-"on" margins ``ma + mr - TL`` of successive cycles converge geometrically to a
     limit above 1e-4 (Aitken extrapolation), instead of simulating up to ``t_max``.
 
+    An intermittent task simulates at most ``max_cycles`` cycles (each takes a few milliseconds);
+    ``progress`` (a :class:`~fatigue_pin.core.progress.Reporter` or a line callback) receives a
+    line every :data:`PROGRESS_EVERY` cycles.
+
     Raises:
-        ParameterError: a bad load, duty cycle or cycle length, or a model without ``ma``/``mr``.
+        ParameterError: a bad load, duty cycle, cycle length or ``max_cycles``, a model without
+            ``ma``/``mr``, or ``max_cycles`` cycles simulated without failure or a steady state.
     """
     TL = _check_load(TL, "endurance_time")
     d = float(duty_cycle)
@@ -246,7 +253,8 @@ def endurance_time(
         _check_solve(out, model, TL)
         return float(out.t_events[0][0]) if out.t_events[0].size else math.inf
 
-    T = float(cycle_s)
+    if isinstance(max_cycles, bool) or not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1:
+        raise ParameterError(f"endurance_time: max_cycles = {max_cycles!r}: expected an integer number of cycles >= 1")
     f_off, J_off = _fixed_functions(model, 0.0)
 
     def ma_negative(t: float, y: np.ndarray) -> float:
@@ -257,23 +265,54 @@ def endurance_time(
     off_opts = dict(method=method, rtol=rtol, atol=atol, events=ma_negative)
     if method in ("Radau", "BDF", "LSODA"):
         off_opts["jac"] = J_off
-    t0 = 0.0
-    margins: list[float] = []
-    while t0 < t_max:
-        t_on_end = min(t0 + d * T, t_max)
-        out = solve_ivp(f_on, (t0, t_on_end), y, **opts)
-        _check_solve(out, model, TL)
-        if out.t_events[0].size:
-            return float(out.t_events[0][0])
-        y = out.y[:, -1]
-        if t_on_end >= t_max:
-            break
-        margins.append(float(y[ia] + y[ir] - TL))
-        if steady_stop and _settles_above(margins):
-            return math.inf
-        y = _rest(f_off, off_opts, y, t_on_end, t0 + T, ia, model)
-        t0 += T
-    return math.inf
+    cycle = _Cycle(model, TL, d, float(cycle_s), f_on, opts, f_off, off_opts, ia, ir)
+    return cycle.run(y, float(t_max), steady_stop, int(max_cycles), as_reporter(progress))
+
+
+@dataclass
+class _Cycle:
+    """One cycle of an intermittent task: "on" at ``TL`` for ``d * T`` s, then a rest; ``run``
+    repeats it (see :func:`endurance_time`)."""
+
+    model: FatigueModel
+    TL: float
+    d: float
+    T: float
+    f_on: object
+    opts: dict
+    f_off: object
+    off_opts: dict
+    ia: int
+    ir: int
+
+    def run(self, y: np.ndarray, t_max: float, steady_stop: bool, max_cycles: int, report) -> float:
+        TL, T = self.TL, self.T
+        t0 = 0.0
+        margins: list[float] = []
+        while t0 < t_max:
+            if len(margins) >= max_cycles:
+                raise ParameterError(
+                    f"endurance_time: max_cycles = {max_cycles} cycles of {T:g} s ({max_cycles * T:g} s) simulated at TL = {TL:g} "
+                    f"without failure or a steady state (margin ma + mr - TL = {margins[-1]:.3g}); expected a task that fails "
+                    "or settles within max_cycles: raise max_cycles (--max-cycles) or lengthen the cycle"
+                )
+            if margins and len(margins) % PROGRESS_EVERY == 0:
+                report.line(f"  TL = {TL:g}: cycle {len(margins)} of at most {max_cycles} (t = {t0:g} s), "
+                            f"margin ma + mr - TL = {margins[-1]:.4g}")
+            t_on_end = min(t0 + self.d * T, t_max)
+            out = solve_ivp(self.f_on, (t0, t_on_end), y, **self.opts)
+            _check_solve(out, self.model, TL)
+            if out.t_events[0].size:
+                return float(out.t_events[0][0])
+            y = out.y[:, -1]
+            if t_on_end >= t_max:
+                break
+            margins.append(float(y[self.ia] + y[self.ir] - TL))
+            if steady_stop and _settles_above(margins):
+                return math.inf
+            y = _rest(self.f_off, self.off_opts, y, t_on_end, t0 + T, self.ia, self.model)
+            t0 += T
+        return math.inf
 
 
 def _rest(f_off, off_opts: dict, y: np.ndarray, t_a: float, t_b: float, ia: int, model: FatigueModel) -> np.ndarray:
@@ -381,6 +420,8 @@ def endurance_table(
     **simulate_options: object,
 ) -> EnduranceTable:
     """Simulated and closed-form endurance times of ``model`` at each load (see :func:`endurance_time`)."""
+    if len(loads) == 0:
+        raise ParameterError("endurance_table: loads = []: expected at least one target load, a fraction in (0, 1]")
     tl = np.array([_check_load(x, "endurance_table") for x in loads])
     et_sim = np.array([endurance_time(model, x, duty_cycle, cycle_s, **simulate_options) for x in tl])
     if isinstance(model, XiaFatigue):
@@ -411,168 +452,3 @@ def compare_frey_law_avin(loads: Sequence[float] = DEFAULT_LOADS, simulate: bool
                                  preset_source(name))
         out.append(tab)
     return out
-
-
-def _fmt(x: float) -> str:
-    if not np.isfinite(x):
-        return "inf" if x == np.inf else "-"
-    return f"{x:.1f}"
-
-
-def _pct(x: float) -> str:
-    return "-" if not np.isfinite(x) else f"{100 * x:+.2f} %"
-
-
-def format_table(tab: EnduranceTable) -> str:
-    """The table as Markdown: TL, simulated ET, closed form, error, and the power model if any."""
-    task = "sustained" if tab.duty_cycle == 1.0 else f"duty cycle {tab.duty_cycle:g}, cycle {tab.cycle_s:g} s"
-    params = ", ".join(f"{k} = {v:g}" for k, v in tab.model.as_dict().items())
-    lines = [f"Endurance times: {tab.name} ({tab.model.kind}: {params}); {task}", ""]
-    head = "| TL | ET simulated (s) | ET closed form (s) | sim / closed - 1 |"
-    sep = "|----|------------------|--------------------|------------------|"
-    if tab.et_power.size:
-        head += f" ET Frey-Law & Avin {tab.joint} (s) | closed / power - 1 |"
-        sep += "------|------|"
-    lines += [head, sep]
-    for i, x in enumerate(tab.loads):
-        row = f"| {x:.2f} | {_fmt(tab.et_sim[i])} | {_fmt(tab.et_closed[i])} | {_pct(tab.rel_error_closed[i])} |"
-        if tab.et_power.size:
-            row += f" {_fmt(tab.et_power[i])} | {_pct(tab.rel_error_power[i])} |"
-        lines.append(row)
-    return "\n".join(lines)
-
-
-def format_comparison(tables: Sequence[EnduranceTable]) -> str:
-    """One Markdown table: per joint and load, the 3CC closed form vs the power model, with the
-    relative error, and per joint the RMS of the log error and of the error in seconds."""
-    loads = tables[0].loads
-    head = "| joint | " + " | ".join(f"TL {x:.1f}" for x in loads) + " | RMS log error | RMS error (s) |"
-    lines = [
-        "3CC closed form (Frey-Law et al. 2012 F, R) vs Frey-Law & Avin (2010) power model: ET (s) 3CC / power (error)",
-        "",
-        head,
-        "|" + "---|" * (len(loads) + 3),
-    ]
-    for tab in tables:
-        cells = [f"{_fmt(c)} / {_fmt(p)} ({_pct(c / p - 1 if np.isfinite(c) else np.nan)})"
-                 for c, p in zip(tab.et_closed, tab.et_power)]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            le = np.log(tab.et_closed / tab.et_power)
-        rms = float(np.sqrt(np.mean(le[np.isfinite(le)] ** 2))) if np.isfinite(le).any() else math.nan
-        diff = tab.et_closed - tab.et_power
-        rms_s = float(np.sqrt(np.mean(diff[np.isfinite(diff)] ** 2))) if np.isfinite(diff).any() else math.nan
-        lines.append(f"| {tab.joint} | " + " | ".join(cells) + f" | {rms:.3f} | {rms_s:.1f} |")
-    return "\n".join(lines)
-
-
-# -- files --------------------------------------------------------------------------------------------
-
-
-def write_h5(path: Path | str, tables: Sequence[EnduranceTable], comparison: Sequence[EnduranceTable] = ()) -> Path:
-    """Write endurance tables to HDF5 (atomic: :func:`fatigue_pin.core.files.atomic_write`).
-
-    Layout: one group per table under ``/endurance/<i>`` and ``/frey_law_avin/<joint>`` with
-    datasets ``TL``, ``et_sim_s``, ``et_closed_form_s``, ``et_power_model_s`` (if any) and attributes
-    ``name``, ``model``, ``params`` (JSON), ``duty_cycle``, ``cycle_s``, ``source``, ``definition``.
-    """
-    import json
-
-    import h5py
-
-    from fatigue_pin.core.version import __version__ as version
-
-    path = Path(path)
-    definition = ("first time at which ma + mr < TL while the task asks for TL, from a rested actuator, rests "
-                  "included; inf if none before t_max")
-    def fill(tmp: Path) -> None:
-        with h5py.File(tmp, "w") as h5:
-            h5.attrs["description"] = "fatigue_pin endurance times of isometric tasks"
-            h5.attrs["fatigue_pin_version"] = version
-            h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-            h5.attrs["definition"] = definition
-            h5.attrs["power_model_source"] = FREY_LAW_AVIN_SOURCE
-            for group, tabs in (("endurance", tables), ("frey_law_avin", comparison)):
-                for i, tab in enumerate(tabs):
-                    g = h5.create_group(f"{group}/{tab.joint if group == 'frey_law_avin' else i}")
-                    g.attrs["name"] = tab.name
-                    g.attrs["model"] = tab.model.kind
-                    g.attrs["params"] = json.dumps(tab.model.as_dict())
-                    g.attrs["duty_cycle"] = tab.duty_cycle
-                    g.attrs["cycle_s"] = np.nan if tab.cycle_s is None else tab.cycle_s
-                    g.attrs["source"] = tab.source
-                    g.create_dataset("TL", data=tab.loads)
-                    g.create_dataset("et_sim_s", data=tab.et_sim)
-                    g.create_dataset("et_closed_form_s", data=tab.et_closed)
-                    if tab.et_power.size:
-                        g.attrs["joint"] = tab.joint
-                        g.create_dataset("et_power_model_s", data=tab.et_power)
-    atomic_write(path, fill)
-    return path
-
-
-def plot_endurance(path: Path | str, tables: Sequence[EnduranceTable], comparison: Sequence[EnduranceTable] = ()) -> Path:
-    """Log-log figure of ET vs TL: simulated points, closed-form lines and power models (PNG)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    n = 2 if comparison else 1
-    fig = Figure(figsize=(6.5 * n, 5))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, n, squeeze=False)[0]
-    ax = axes[0]
-    fine = np.linspace(0.05, 0.98, 200)
-    for k, tab in enumerate(tables):
-        color = f"C{k}"
-        ax.loglog(tab.loads, tab.et_sim, "o", color=color, label=f"{tab.name}: simulated")
-        if isinstance(tab.model, XiaFatigue):
-            m = tab.model
-            closed = [intermittent_et_closed_form(m.F, m.R, x, tab.duty_cycle, tab.cycle_s, m.r) for x in fine]
-            ax.loglog(fine, closed, "-", color=color, lw=1, label=f"{tab.name}: closed form (instant activation)")
-        if tab.et_power.size:
-            ax.loglog(fine, power_model_et(tab.joint, fine), "--", color="k", lw=1,
-                      label=f"Frey-Law & Avin 2010, {tab.joint}")
-    ax.set_xlabel("target load TL (fraction of maximum)")
-    ax.set_ylabel("endurance time (s)")
-    ax.set_title("Endurance time")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    if comparison:
-        ax = axes[1]
-        for k, tab in enumerate(comparison):
-            ax.loglog(fine, sustained_et_closed_form(tab.model.F, tab.model.R, fine), "-", color=f"C{k}", lw=1.2,
-                      label=f"{tab.joint}: 3CC")
-            ax.loglog(fine, power_model_et(tab.joint, fine), "--", color=f"C{k}", lw=1, label=f"{tab.joint}: power model")
-        ax.set_xlabel("target load TL (fraction of maximum)")
-        ax.set_ylabel("endurance time (s)")
-        ax.set_title("3CC (Frey-Law et al. 2012) vs Frey-Law & Avin 2010")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=120)
-    return out
-
-
-def run_endurance(
-    out_dir: Path | str,
-    preset_name: str = "frey-law-2012/elbow",
-    loads: Sequence[float] = DEFAULT_LOADS,
-    duty_cycle: float = 1.0,
-    cycle_s: float | None = None,
-    compare: bool = True,
-) -> tuple[EnduranceTable, list[EnduranceTable], dict[str, Path]]:
-    """Endurance table of a preset (name or JSON file), the per-joint comparison with Frey-Law &
-    Avin (2010), ``endurance.h5`` and ``endurance.png`` in ``out_dir`` (checked first)."""
-    from fatigue_pin.fatigue.presets import preset, preset_source
-
-    model = preset(preset_name)
-    source = preset_source(preset_name)
-    out = check_output_dir(out_dir)
-    # a preset of a joint region (frey-law-2012/elbow, rakshit-2021/elbow) is set beside that joint's curve
-    region = preset_name.split("/", 1)[1] if preset_name.count("/") == 1 and not preset_name.endswith(".json") else None
-    joint = region if region in FREY_LAW_AVIN_2010 else None
-    tab = endurance_table(model, loads, duty_cycle, cycle_s, name=preset_name, joint=joint, source=source)
-    comparison = compare_frey_law_avin(loads) if compare else []
-    paths = {"h5": write_h5(out / "endurance.h5", [tab], comparison),
-             "png": plot_endurance(out / "endurance.png", [tab], comparison)}
-    return tab, comparison, paths

@@ -245,7 +245,7 @@ def load_preset_json(path: str | Path) -> FatigueModel:
     p = Path(path)
     data = _read_json(p)
     model = data.get("model")
-    if model not in _MODEL_ALIASES:
+    if not isinstance(model, str) or model not in _MODEL_ALIASES:
         raise PresetFileError(f"parameter file {str(p)!r}: model = {model!r}: expected one of {sorted(_MODEL_ALIASES)}")
     kind = _MODEL_ALIASES[model]
     cls = FATIGUE_MODELS[kind]

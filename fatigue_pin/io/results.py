@@ -39,6 +39,7 @@ new file, both complete and readable, and a write costs about the same whatever 
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
@@ -48,20 +49,23 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fatigue_pin.core.errors import ResultFileError
-from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked
+from fatigue_pin.core.errors import FatiguePinError, ResultFileError
+from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
+    IN_PROGRESS_SUFFIX,
     RUN_ATTRIBUTES,
+    RUN_NAME_GRAMMAR,
     SEARCH_DTYPE,
     WINDOW_DTYPE,
     RunResult,
+    check_run_name,
     torque_limits_at_cycle_ends,
 )
 
 __all__ = [
     "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
-    "check_output", "check_output_dir", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
+    "check_output", "check_output_dir", "check_run_slot", "delete_run", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
     "write_run", "write_search",
 ]
 
@@ -117,7 +121,7 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
     attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
     attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in attrs.items()}
-    return RunResult(
+    run = RunResult(
         name=name,
         attrs=attrs,
         t=group["t"][()],
@@ -138,6 +142,8 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         fatigued=group["fatigued"][()] if "fatigued" in group else group["mf"][()],  # before "fatigued": Xia's mf
         extras={k: v[()] for k, v in group["extras"].items()} if "extras" in group else {},
     )
+    run.check_shapes()
+    return run
 
 
 def _text(value: Any) -> str:
@@ -249,7 +255,7 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
         ResultFileError: the existing file cannot be read (damaged, not HDF5, newer layout), or
             the write fails (full disk, permissions), naming the path.
     """
-    path = Path(path)
+    path = through_links(path)  # a symbolic link is written through: the link stays, its target changes
 
     def write(tmp: Path) -> None:
         compacted = _prepare(path, tmp)
@@ -271,17 +277,78 @@ def _atomic_rewrite(path: Path, skip: set[str], fill: Any, new_bytes: int = 0) -
         raise _io_error(path, exc) from exc
 
 
+def _is_run(obj: Any) -> bool:
+    return isinstance(obj, h5py.Group) and "t" in obj and "q" in obj
+
+
+def _check_slot(h5: h5py.File, name: str, path: Path) -> bool:
+    """Whether ``name`` can take a run in the open file ``h5`` (True: it holds a run, which the
+    new one replaces). A run never lands on anything but a run of the same name: not on the
+    group of other runs, a search table or any other object, and not inside another run.
+
+    Raises:
+        ResultFileError: naming what is there.
+    """
+    segments = name.split("/")
+    for k in range(1, len(segments)):
+        parent = "/".join(segments[:k])
+        if parent in h5 and (not isinstance(h5[parent], h5py.Group) or _is_run(h5[parent])):
+            raise ResultFileError(f"run name {name!r} lies inside {'run' if _is_run(h5[parent]) else 'dataset'} {parent!r} of "
+                                  f"{str(path)!r}; expected a name that is not inside another run")
+    if name not in h5:
+        return False
+    obj = h5[name]
+    if _is_run(obj):
+        return True
+    inside = sorted(f"{name}/{k}" for k, v in obj.items() if isinstance(v, h5py.Group)) if isinstance(obj, h5py.Group) else []
+    what = f"the group of {inside}" if inside else ("a dataset" if isinstance(obj, h5py.Dataset) else "a group that is no run")
+    raise ResultFileError(f"run name {name!r} is {what} in {str(path)!r}; a run replaces only a run of the same name: "
+                          "expected a new name or the name of a run")
+
+
+def check_run_slot(path: str | Path, name: str, internal: bool = False) -> str:
+    """Check, before any work, that run ``name`` follows the grammar
+    (:func:`~fatigue_pin.drivers.run.check_run_name`) and can be written to ``path`` without
+    replacing anything but a run of the same name (a missing file: any valid name)."""
+    check_run_name(name, internal)
+    path = Path(path)
+    if path.exists():
+        with _open(path) as h5:
+            _check_slot(h5, name, path)
+    return name
+
+
 def write_run(path: str | Path, run: RunResult) -> Path:
-    """Add or replace run ``run.name`` in the HDF5 file ``path`` (atomic, crash-safe)."""
+    """Add run ``run.name`` to the HDF5 file ``path``, or replace the run of that name (atomic,
+    crash-safe); a name that collides with anything else in the file is refused (:func:`check_run_slot`)."""
+    path = Path(path)
+    check_run_name(run.name, internal=True)
 
     def fill(h5: h5py.File) -> None:
+        if _check_slot(h5, run.name, path):  # on the copy: the file is unchanged if this raises
+            del h5[run.name]
         _write_run(h5.create_group(run.name), run)
 
     arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values(),
               *run.extras.values()]
     size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
-    _atomic_rewrite(Path(path), {run.name}, fill, new_bytes=size)
-    return Path(path)
+    _atomic_rewrite(path, set(), fill, new_bytes=size)
+    return path
+
+
+def delete_run(path: str | Path, name: str) -> None:
+    """Remove run ``name`` from the file ``path`` (atomic); only a run is ever removed, and a
+    missing file or run leaves everything as it is."""
+    path = Path(path)
+    check_run_name(name, internal=True)
+    if not path.exists() or name not in list_runs(path, failed_windows=True):
+        return
+
+    def fill(h5: h5py.File) -> None:
+        if _check_slot(h5, name, path):
+            del h5[name]
+
+    _atomic_rewrite(path, set(), fill)
 
 
 def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any] | None = None) -> None:
@@ -294,7 +361,14 @@ def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs:
                        str(r.get("kind", "")).encode()[:24], str(r.get("guess", "")).encode()[:24],
                        float(r.get("constraint_violation", np.nan))) for r in rows], dtype=SEARCH_DTYPE)
 
+    check_run_name(name, internal=True)
+    if "/" in name:
+        raise ResultFileError(f"search table name {name!r}: expected one segment ({RUN_NAME_GRAMMAR})")
+
     def fill(h5: h5py.File) -> None:
+        if "search" in h5 and not isinstance(h5["search"], h5py.Group) or "search" in h5 and _is_run(h5["search"]):
+            raise ResultFileError(f"'search' in {str(path)!r} is not the group of search tables; expected a result file "
+                                  "written by fatigue_pin")
         grp = h5.require_group("search")
         if name in grp:
             del grp[name]
@@ -316,7 +390,7 @@ def check_output(path: str | Path) -> Path:
     Raises:
         ResultFileError: naming the path and what is wrong.
     """
-    path = Path(path)
+    path = through_links(path)  # a symbolic link: its target is what is written
     if path.is_dir():
         raise ResultFileError(f"output {str(path)!r} is a folder; expected the path of an HDF5 result file")
     size = 0
@@ -371,18 +445,29 @@ def _run_names(h5: h5py.File) -> list[str]:
 
 
 def _main_runs(names: list[str]) -> list[str]:
-    """``names`` without the failed windows of sliding runs."""
-    return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX)]
+    """``names`` without the failed windows of sliding runs and the runs in progress."""
+    return [n for n in names if not n.endswith(FAILED_WINDOW_SUFFIX) and not n.endswith(IN_PROGRESS_SUFFIX)]
+
+
+@contextlib.contextmanager
+def _reading(what: str):
+    """Any failure of h5py or numpy while reading ``what`` of an open file (a damaged file can
+    raise RuntimeError, KeyError, IndexError, TypeError, UnicodeDecodeError, ...) becomes one
+    ResultFileError naming it; the project's own errors pass as they are."""
+    try:
+        yield
+    except FatiguePinError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever a damaged file makes h5py raise
+        reason = str(exc).splitlines()[0] if str(exc) else ""
+        raise ResultFileError(f"{what} cannot be read ({type(exc).__name__}: {reason}); the file is damaged") from None
 
 
 def list_runs(path: str | Path, failed_windows: bool = False) -> list[str]:
     """Names of the OCP runs in a result file (groups holding a ``t`` dataset), sorted; the
     failed windows of sliding runs (``*_failed_window``) only with ``failed_windows=True``."""
-    with _open(path) as h5:
-        try:
-            names = _run_names(h5)
-        except (OSError, RuntimeError) as exc:
-            raise ResultFileError(f"{str(path)!r} is damaged: its groups cannot be listed ({exc})") from None
+    with _open(path) as h5, _reading(f"the groups of {str(path)!r}"):
+        names = _run_names(h5)
     return names if failed_windows else _main_runs(names)
 
 
@@ -390,33 +475,29 @@ def read_run(path: str | Path, name: str | None = None) -> RunResult:
     """Read one run; ``name`` may be omitted when the file holds exactly one run (a sliding
     run's failed window, ``*_failed_window``, does not count)."""
     with _open(path) as h5:
-        runs = _run_names(h5)
+        with _reading(f"the groups of {str(path)!r}"):
+            runs = _run_names(h5)
         if name is None:
             main = _main_runs(runs)
+            if not main:
+                raise ResultFileError(f"{str(path)!r} holds no run; expected a result file with a run (it may hold "
+                                      f"only search tables or failed windows: {runs})")
             if len(main) != 1:
-                raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name")
+                raise ResultFileError(f"{str(path)!r} holds {len(main)} runs {main}; choose one by name (--run NAME)")
             name = main[0]
         if name not in runs:
             shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]
             raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {shown}")
-        try:
+        with _reading(f"run {name!r} in {str(path)!r}"):
             return _read_run(h5[name], name)
-        except ResultFileError:
-            raise
-        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as exc:
-            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ResultFileError(f"run {name!r} in {str(path)!r} cannot be read ({reason}); the file is damaged") from None
 
 
 def read_search(path: str | Path) -> dict[str, np.ndarray]:
     """All max-cycles search tables of a file, by name."""
-    with _open(path) as h5:
+    with _open(path) as h5, _reading(f"the search tables of {str(path)!r}"):
         if "search" not in h5:
             return {}
-        try:
-            return {k: h5["search"][k][()] for k in h5["search"]}
-        except (OSError, RuntimeError, KeyError, ValueError) as exc:
-            raise ResultFileError(f"the search tables of {str(path)!r} cannot be read ({exc}); the file is damaged") from None
+        return {k: h5["search"][k][()] for k in h5["search"]}
 
 
 def config_json(obj: Any) -> str:
@@ -456,6 +537,9 @@ class ResultFile:
 
     def write_table(self, name: str, rows: list[dict[str, Any]], attrs: dict[str, Any]) -> None:
         write_search(self.path, name, rows, attrs)
+
+    def delete(self, name: str) -> None:
+        delete_run(self.path, name)
 
     def __repr__(self) -> str:
         return f"ResultFile({str(self.path)!r})"

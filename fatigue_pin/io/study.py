@@ -69,9 +69,22 @@ class Study:
         path = Path(path)
         if path.is_dir():
             raise StudyError(f"study file {str(path)!r} is a folder; expected a .toml study file or an HDF5 result file")
-        if not path.is_file():
+        if not path.exists():
             raise StudyError(f"study file not found: {str(path)!r}; expected a .toml study file or an HDF5 result file")
+        if not path.is_file():  # a pipe (/dev/stdin, <(...)): read it once, as TOML
+            try:
+                data = path.read_bytes()
+            except OSError as exc:
+                raise StudyError(f"study file {str(path)!r} cannot be read ({exc.strerror}); expected a .toml study file") from None
+            if data.startswith(b"\x89HDF"):
+                raise StudyError(f"study {str(path)!r} is an HDF5 file read from a pipe; expected it as a file path")
+            try:
+                return cls.from_toml(data.decode(), repr(str(path)))
+            except UnicodeDecodeError:
+                raise StudyError(f"{str(path)!r} is neither a TOML study nor an HDF5 result file") from None
         head = path.read_bytes()[:8]
+        if run is not None and not head.startswith(b"\x89HDF"):
+            raise StudyError(f"run {run!r}: {str(path)!r} is a study file, not an HDF5 result file; a run is named only in a result file")
         if head.startswith(b"\x89HDF"):
             from fatigue_pin.io.results import read_run
 
@@ -339,7 +352,12 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
         from fatigue_pin.io.results import check_output
 
         check_output(out)
+    name = study.run_name() if name is None else name
+    from fatigue_pin.drivers.run import check_run_name
+    from fatigue_pin.io.results import check_run_slot
+
+    check_run_slot(out, name) if out is not None else check_run_name(name)  # nothing but a run of that name in its place
     horizon = study.horizon_settings()
     job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
-               ResultFile(out) if out is not None else None, name or study.run_name(), resume, as_reporter(progress))
+               ResultFile(out) if out is not None else None, name, resume, as_reporter(progress))
     return _RUNNERS[horizon.kind](job)

@@ -162,7 +162,7 @@ def _costs_table(table: Any) -> dict[str, Any]:
             raise StudyError(f"costs.{name} = {spec!r}: expected a weight or a table {{ weight = ..., ... }}")
         spec = dict(spec)
         kind = spec.setdefault("kind", name)
-        if kind not in COST_KINDS:
+        if not isinstance(kind, str) or kind not in COST_KINDS:
             raise StudyError(f"costs.{name}: cost kind {kind!r} is unknown; expected one of {sorted(COST_KINDS)}")
         if "weight" not in spec:
             raise StudyError(f"missing key costs.{name}.weight: expected a weight >= 0")
@@ -239,8 +239,8 @@ def _toml_value(v: Any) -> str:
         if math.isinf(v):
             return "inf" if v > 0 else "-inf"
         return repr(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, str):  # a TOML basic string: backslash, quote and control characters escaped
+        return '"' + "".join(c if c not in '\\"' and 31 < ord(c) != 127 else f"\\u{ord(c):04x}" for c in v) + '"'
     if isinstance(v, list):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):

@@ -49,7 +49,7 @@ from typing import Callable, Iterator, Mapping, Sequence
 
 import casadi as ca
 
-from fatigue_pin.core.errors import FatiguePinError, ParameterError
+from fatigue_pin.core.errors import CompileError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, locked
 
 #: Version of the library layout produced here; part of every cache key.
@@ -71,10 +71,6 @@ _COMPILE_BYTES_PER_S = 120_000.0
 _DERIVATIVE = re.compile(r"(fwd[1-9][0-9]*_|adj[1-9][0-9]*_|jac_)")
 
 Progress = Callable[[str], None]
-
-
-class CompileError(FatiguePinError, RuntimeError):
-    """Generated code could not be compiled (compiler missing or failing)."""
 
 
 def cache_folder(cache_dir: str | Path | None = None) -> Path:

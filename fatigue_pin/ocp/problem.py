@@ -18,7 +18,7 @@ import numpy as np
 
 from fatigue_pin.ocp.actuators import ParamsSpec, SignedTorqueActuators
 from fatigue_pin.ocp.costs import CostTerm, check_costs
-from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.errors import ParameterError, TaskError
 from fatigue_pin.robot.model import RobotModel
 from fatigue_pin.ocp.task import Task
 
@@ -168,14 +168,19 @@ class Problem:
             object.__setattr__(self, "x_init", x)
 
     def _check_x_init(self, x: np.ndarray) -> None:
-        """Refuse an initial state with q or qdot outside the model's bounds, or fatigue states
-        that are not a valid state of their half's model (fractions in [0, 1], Xia: summing to 1)."""
+        """Refuse an initial state with q or qdot outside the model's bounds, q off a target at
+        phase 0 (:meth:`Task.check_start`), or fatigue states that are not a valid state of their
+        half's model (fractions in [0, 1], Xia: summing to 1)."""
         L, m = self.layout, self.model
         for label, values, lo, hi in (("q", x[L.q], m.q_lower, m.q_upper), ("qdot", x[L.v], m.v_lower, m.v_upper)):
             bad = [m.joint_names[j] for j in range(values.size) if not (lo[j] <= values[j] <= hi[j])]
             if bad:
                 raise ParameterError(f"x_init: {label} = {values.tolist()} is outside the bounds of joints {bad} "
                                      f"({lo.tolist()} to {hi.tolist()})")
+        try:
+            self.task.check_start(m, x[L.q], "x_init's q")
+        except TaskError as exc:
+            raise ParameterError(str(exc)) from None
         k0 = L.nq + L.nv
         for half, off in zip(self.actuators.halves, self.actuators.state_offsets()):
             start = k0 + off

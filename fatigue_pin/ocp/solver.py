@@ -17,8 +17,10 @@ into an ``nlpsol`` once and re-solves it with new parameter values as often as n
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -31,6 +33,8 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, is_str, is_strs, setting
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.core.signals import watch
+from fatigue_pin.core.streams import captured
 from fatigue_pin.ocp.compiled import cached_build, compile_shared, verify_entry
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
@@ -193,11 +197,84 @@ class SolverOptions:
         ipopt.update(self.ipopt)
         return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
 
+    def check_ipopt(self) -> None:
+        """Refuse, before any work, IPOPT options that IPOPT would reject or that cannot work on
+        this machine (:func:`check_ipopt_options`: unknown options, values of the wrong type or
+        out of range, a linear solver IPOPT does not know or cannot load)."""
+        check_ipopt_options(tuple(sorted((k, repr(v)) for k, v in self.ipopt_options()["ipopt"].items())))
+
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-code cache (:func:`fatigue_pin.ocp.compiled.cache_folder`)."""
         from fatigue_pin.ocp.compiled import cache_folder
 
         return cache_folder(self.cache_dir)
+
+
+def _ipopt_refusal(name: str, value: Any, said: list[str], exc: Exception) -> ParameterError:
+    """The one-line error of an option that IPOPT refused, from IPOPT's own lines (``said``)."""
+    key = "solver.linear_solver" if name == "linear_solver" else f"solver.ipopt.{name}"
+    text = " ".join(str(exc).split())
+    if "No such IPOPT option" in text:
+        return ParameterError(f"{key}: IPOPT has no option {name!r}; expected an IPOPT option name (IPOPT's options reference)")
+    if "type mismatch" in text:
+        return ParameterError(f"{key} = {value!r}: IPOPT expects another type of value for {name!r}")
+    settings = [line.split()[0] for line in said if line.split() and not line.startswith(("Setting:", "###", "Category:",
+                                                                                            "Description:", "Valid", "Default:"))]
+    ranges = [line for line in said if "<" in line and "(" in line]
+    if ranges:
+        expected = f"a value in {ranges[0].split('(')[0].strip()} ... {ranges[0].split(')')[-1].strip()}"
+    elif settings:
+        expected = f"one of {settings}"
+    else:
+        expected = "a valid setting (IPOPT's options reference)"
+    return ParameterError(f"{key} = {value!r}: not a valid IPOPT setting; expected {expected}")
+
+
+@functools.lru_cache(maxsize=64)
+def check_ipopt_options(items: tuple[tuple[str, str], ...]) -> None:
+    """Check IPOPT options (``(name, repr(value))`` pairs, hashable so that a set of options is
+    checked once per process) on a one-variable NLP: each option alone when IPOPT refuses the
+    set (IPOPT names neither the option nor the value), then one solve of zero iterations, which
+    fails with ``Invalid_Option`` when the linear solver cannot be loaded (an HSL solver without
+    its library). IPOPT's own lines are kept for the message instead of reaching the terminal.
+
+    Raises:
+        ParameterError: one line naming the option, its value and what is expected.
+    """
+    from fatigue_pin.core.streams import captured
+
+    import ast
+
+    options = {name: ast.literal_eval(value) for name, value in items}
+    x = ca.SX.sym("x")
+    nlp = {"x": x, "f": (x - 1) ** 2, "g": x}
+
+    def build(opts: dict[str, Any]) -> ca.Function:
+        return ca.nlpsol("fatigue_pin_option_check", "ipopt", nlp, {"ipopt": opts, "print_time": False, "error_on_fail": False})
+
+    with captured(1) as said:
+        try:
+            solver = build({**options, "max_iter": 0, "print_level": 5})  # level 5: IPOPT says why a library fails to load
+        except RuntimeError:
+            solver = None
+    if solver is None:
+        for name, value in options.items():
+            with captured(1) as said:
+                try:
+                    build({name: value, "print_level": 0, "sb": "yes"})
+                except RuntimeError as exc:
+                    failure = exc
+                else:
+                    continue
+            raise _ipopt_refusal(name, value, said, failure)
+        raise ParameterError(f"IPOPT refuses the options {options}; expected options IPOPT accepts together")
+    with captured(1) as said:
+        solver(x0=0.0, lbg=-10.0, ubg=10.0)
+    if solver.stats().get("return_status") == "Invalid_Option":
+        why = next((line.removeprefix("Exception message:").strip() for line in said if line.startswith("Exception message:")),
+                   "IPOPT cannot load it")
+        raise ParameterError(f"solver.linear_solver = {options.get('linear_solver')!r} cannot be used on this machine ({why}); "
+                             "expected an installed linear solver, e.g. 'mumps' (ships with CasADi)")
 
 
 @dataclass
@@ -397,7 +474,10 @@ class NlpSolver:
         t0 = time.perf_counter()
         solver = self._solver(max_iter, warm_start and lam_x0 is not None and lam_g0 is not None)
         self._last[int(self.options.max_iter if max_iter is None else max_iter)] = solver
-        sol = solver(**args)
+        with captured(2) as said, watch():  # Ctrl-C / SIGTERM: IPOPT stops, Interrupted is raised (no failed solve)
+            sol = solver(**args)
+        if said:  # what CasADi and IPOPT wrote on standard error, once the solve was not interrupted
+            print("\n".join(said), file=sys.stderr)
         wall = time.perf_counter() - t0
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))

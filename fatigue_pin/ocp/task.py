@@ -31,7 +31,24 @@ from typing import Sequence, Union
 import casadi as ca
 import numpy as np
 
-from fatigue_pin.core.errors import TaskError
+from fatigue_pin.core.errors import ParameterError, TaskError
+
+#: Most shooting intervals of one OCP (a cycle, or all the cycles of a horizon): beyond it the
+#: NLP would not fit in memory (arm26: 16 states and 4 controls per interval).
+MAX_INTERVALS = 1_000_000
+
+
+def check_horizon(task: "Task", n_cycles: object, what: str = "cycles") -> int:
+    """``n_cycles`` as an int, once it is a whole number >= 1 whose OCP (``n_cycles *
+    intervals_per_cycle`` intervals) stays within :data:`MAX_INTERVALS`; ParameterError naming
+    ``what`` otherwise (checked before anything is built or compiled)."""
+    if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
+        raise ParameterError(f"{what} = {n_cycles!r}: expected an integer number of cycles >= 1")
+    n = int(n_cycles)
+    if n * task.intervals_per_cycle > MAX_INTERVALS:
+        raise ParameterError(f"{what} = {n}: {n} cycles of {task.intervals_per_cycle} intervals are {n * task.intervals_per_cycle} "
+                             f"shooting intervals; expected at most {MAX_INTERVALS} in one OCP")
+    return n
 
 
 def _finite(owner: str, name: str, value: object, what: str = "a finite number") -> float:
@@ -331,7 +348,8 @@ class Task:
         intervals_per_cycle: shooting intervals per cycle.
         items: the constraints (:class:`JointTarget`, :class:`JointRange`, :class:`StateConstraint`).
         q_init: initial configuration (rad or m), shape (nq,); ``None``: every joint at 0, or at
-            its phase-0 target where it has one.
+            its phase-0 target where it has one. A given q_init must meet the phase-0 targets
+            within their tolerances (node 0 is theirs too; :meth:`check_start`).
         final_node_offset: targets at phase 0 apply to the end of the last cycle at node
             N + offset (0, or -1 to impose it one node before the end).
     """
@@ -350,6 +368,8 @@ class Task:
         n = self.intervals_per_cycle
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer >= 1")
+        if n > MAX_INTERVALS:
+            raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer in [1, {MAX_INTERVALS}]")
         object.__setattr__(self, "intervals_per_cycle", int(n))
         object.__setattr__(self, "items", tuple(self.items))
         for item in self.items:
@@ -361,11 +381,43 @@ class Task:
                 raise TaskError(
                     f"task phase at = {at!r} is not a node: at * intervals_per_cycle = {at * n:g}; expected a whole number"
                 )
+        self._check_one_target_per_node()
         if self.final_node_offset not in (0, -1):
             raise TaskError(f"Task.final_node_offset = {self.final_node_offset!r}: expected 0 or -1")
         if self.q_init is not None:
             q = tuple(_finite("Task", "q_init", v, "a list of finite joint positions") for v in np.ravel(self.q_init))
             object.__setattr__(self, "q_init", q)
+
+    def _check_one_target_per_node(self) -> None:
+        """Refuse two joint targets of one joint at one node of the cycle that differ (the later
+        one would replace the earlier one's bounds without a word); identical ones are one."""
+        n = self.intervals_per_cycle
+        seen: dict[tuple[str, int], JointTarget] = {}
+        for t in self.items:
+            if not isinstance(t, JointTarget):
+                continue
+            key = (t.joint, int(round(t.at * n)) % n)
+            first = seen.setdefault(key, t)
+            if (first.value, first.tolerance) != (t.value, t.tolerance):
+                raise TaskError(
+                    f"task targets {first.value!r} (+- {first.tolerance:g}) and {t.value!r} (+- {t.tolerance:g}) of joint "
+                    f"{t.joint!r} at phase {t.at:g}: expected one target per joint and phase"
+                )
+
+    def check_start(self, model, q: np.ndarray, what: str = "q_init", slack: float = 1e-9) -> None:
+        """Refuse a start configuration ``q`` (nq,) that misses a target at phase 0 (the first
+        node is that target's node too, and the target would override ``q`` there without a
+        word): each such joint must be within the target's tolerance (+ ``slack``)."""
+        for t in self.joint_targets:
+            if t.at != 0.0 or t.joint not in model.joint_names:
+                continue
+            j = model.joint_names.index(t.joint)
+            if abs(float(q[j]) - t.value) > t.tolerance + slack:
+                raise TaskError(
+                    f"task {what} = {[float(x) for x in q]} puts joint {t.joint!r} at {float(q[j])!r}, but its target at phase 0 "
+                    f"is {t.value!r} (+- {t.tolerance:g}); expected the start within the phase-0 target (or no {what}: "
+                    "it then starts at its targets)"
+                )
 
     @property
     def dt(self) -> float:
@@ -440,6 +492,7 @@ class Task:
         bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
         if bad:
             raise TaskError(f"task initial configuration q_init = {q.tolist()} is outside the range of joints {bad}")
+        self.check_start(model, q)
         for item in self.items:  # frame targets, planes, orientations: unknown frames, reach
             if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and callable(getattr(item, "check", None)):
                 item.check(model, q)

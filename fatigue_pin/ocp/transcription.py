@@ -44,12 +44,16 @@ from fatigue_pin.core.settings import check_fields, is_bool, is_int, setting
 from fatigue_pin.ocp.problem import Problem, StateLayout
 from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solver import NlpResult, NlpSolver, SolverOptions, simple_bounds
-from fatigue_pin.ocp.task import joint_target_pairs
+from fatigue_pin.ocp.task import check_horizon, joint_target_pairs
 
 #: Integrators of the shooting intervals.
 INTEGRATORS = ("rk4",)
 #: How interval functions are mapped over the horizon.
 MAP_MODES = ("auto", "serial", "openmp", "thread")
+
+
+#: Most integrator steps per shooting interval (each is unrolled in the interval's expression).
+MAX_SUBSTEPS = 1000
 
 
 @dataclass(frozen=True)
@@ -74,7 +78,7 @@ class Transcription:
             code does it). Same feasible set, other KKT systems: for comparisons.
     """
 
-    substeps: int = setting(5, "an integer >= 1", lambda v: is_int(v) and v >= 1)
+    substeps: int = setting(5, f"an integer in [1, {MAX_SUBSTEPS}]", lambda v: is_int(v) and 1 <= v <= MAX_SUBSTEPS)
     integrator: str = setting("rk4", f"one of {list(INTEGRATORS)}", lambda v: v in INTEGRATORS)
     scaling: bool = setting(True, "true or false", is_bool)
     parallel: str = setting("auto", f"one of {list(MAP_MODES)}", lambda v: v in MAP_MODES)
@@ -332,8 +336,8 @@ class Ocp:
         progress: Progress = None,
     ) -> None:
         t0 = time.perf_counter()
-        if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
-            raise ParameterError(f"n_cycles = {n_cycles!r}: expected an integer >= 1")
+        check_horizon(problem.task, n_cycles, "n_cycles")
+        (solver or SolverOptions()).check_ipopt()  # before anything is built or compiled
         if end_tolerance is not None and not (0 <= end_tolerance < 1):
             raise ParameterError(f"end_tolerance = {end_tolerance!r}: expected a fraction in [0, 1) or None")
         if guess not in GUESSES:

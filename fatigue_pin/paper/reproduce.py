@@ -13,14 +13,12 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from fatigue_pin.paper.curl import COSTS, PAPER_MINUTES_S0, PAPER_REPETITIONS
 
 from fatigue_pin.core.progress import Progress, as_reporter
-
 
 @dataclass(frozen=True)
 class Job:
@@ -38,7 +36,6 @@ class Job:
     def label(self) -> str:
         return f"{self.horizon}/{self.cost}_S{self.S:g}"
 
-
     def study(self):
         """The job as a study of the paper's curl."""
         from fatigue_pin.paper.curl import curl_study
@@ -47,11 +44,9 @@ class Job:
         bound = self.n_max if horizon == "max-cycles" else self.max_cycles
         return curl_study(horizon, self.cost, self.preset, self.S, max_cycles=bound)
 
-
 def _one_thread_per_worker() -> None:
     """Worker-process initialiser: one OpenMP thread per worker (the parent is left unchanged)."""
     os.environ["OMP_NUM_THREADS"] = "1"
-
 
 def _run_job(job: Job) -> dict[str, object]:
     """Run one job in a worker process (no progress output; results go to the job's file)."""
@@ -61,7 +56,6 @@ def _run_job(job: Job) -> dict[str, object]:
     result = run_study(job.study(), job.out)
     return {"label": job.label, "horizon": job.horizon, "cost": job.cost, "S": job.S, "repetitions": result.repetitions,
             "solve_time_s": result.solve_time_s, "elapsed_s": time.perf_counter() - t0, "file": str(job.out)}
-
 
 def _figures_and_replays(files: list[Path], out: Path, progress: Progress) -> list[Path]:
     from fatigue_pin.paper.forward_file import is_forward_file, plot_forward_file
@@ -83,7 +77,6 @@ def _figures_and_replays(files: list[Path], out: Path, progress: Progress) -> li
             written.append(html)
             progress(f"replay: {html}")
     return written
-
 
 def demo(out: str | Path = "results/demo", progress: Progress = print, max_cycles: int | None = None) -> dict[str, Path]:
     """Solve the sliding-horizon curl to exhaustion (paper defaults) and write everything.
@@ -112,7 +105,6 @@ def demo(out: str | Path = "results/demo", progress: Progress = print, max_cycle
     progress(f"replay (open in a browser): {html}")
     progress(f"results: {h5}")
     return {"h5": h5, "figures": figures, "replay": html}
-
 
 def reproduce(
     out: str | Path = "results/reproduce",
@@ -173,7 +165,6 @@ def reproduce(
     progress(f"report: {report}")
     return report
 
-
 def _report(rows: list[dict[str, object]], forward_table: str, preset: str, quick: bool, elapsed: float, files: list[Path]) -> str:
     from fatigue_pin.io.results import list_runs, read_run
 
@@ -217,7 +208,6 @@ def _report(rows: list[dict[str, object]], forward_table: str, preset: str, quic
     lines += ["", "## Figures and replays", "", "Figures: [figures/](figures/). Replays (open in a browser): [replay/](replay/).", ""]
     return "\n".join(lines)
 
-
 def _verify_rows(files: list[Path]) -> list[str]:
     """One table row of :func:`fatigue_pin.verify.verifier.verify_run` figures per run of the files."""
     from fatigue_pin.io.results import list_runs, read_run
@@ -236,7 +226,6 @@ def _verify_rows(files: list[Path]) -> list[str]:
             verdict = "passed" if r.passed else "FAILED: " + ", ".join(c.name for c in r.failures)
             rows.append(f"| {name} | {r.gap:.1e} | {r.gap_fatigue:.1e} | {r.coupling:.1e} | {r.invariant:.1e} | {verdict} |")
     return rows
-
 
 def final_invariant_errors(path: Path) -> dict[str, float]:
     """max |1 - (ma + mr + mf)| at the final node of every run in a file."""

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from fatigue_pin.robot.dynamics import casadi_dynamics
+from fatigue_pin.robot.urdf import check_urdf_text, quiet_stderr
 from fatigue_pin.core.errors import DimensionError, ModelError
 from fatigue_pin.core.settings import check_fields, setting
 
@@ -269,6 +270,20 @@ def _validate_joints(model: pin.Model, path: Path) -> None:
             )
 
 
+def _urdf_path(urdf: str | Path | None) -> Path:
+    """The path of an existing URDF file (the bundled arm26 for None); ModelError otherwise."""
+    if urdf is None:
+        return bundled_urdf("arm26")
+    if not str(urdf).strip():
+        raise ModelError("URDF path '' is empty; expected the path of an existing .urdf file")
+    path = Path(urdf).expanduser()
+    if path.is_dir():
+        raise ModelError(f"URDF path {str(path)!r} is a folder; expected the path of a .urdf file")
+    if not path.exists():
+        raise ModelError(f"URDF file not found: {str(path)!r} (expected the path of an existing .urdf file)")
+    return path
+
+
 def resolve_model(name: str | Path | None = None, gravity: object = None, payload: Payload | None = None,
                   locked_joints: Mapping[str, float] | None = None) -> RobotModel:
     """Load a model by name or path: a bundled model (``arm26``), an example-robot-data name
@@ -282,6 +297,9 @@ def resolve_model(name: str | Path | None = None, gravity: object = None, payloa
     if name is None:
         return load_model(None, g, payload, locked_joints)
     text = str(name)
+    if not text.strip():
+        raise ModelError(f"model {text!r} is empty; expected a bundled model (arm26), an example-robot-data name "
+                         f"{sorted(EXAMPLE_ROBOTS)} or the path of a URDF file")
     here = Path(__file__).resolve().parents[1]  # the package folder
     if text.isidentifier() and any((folder / f"{text}.urdf").is_file() for folder in (here / "urdf", here.parent / "urdf")):
         return load_model(bundled_urdf(text), g, payload, locked_joints)
@@ -358,37 +376,6 @@ class ModelSource:
         return resolve_model(self.urdf, gravity=self.gravity, payload=self.payload, locked_joints=self.locked_joints)
 
 
-def _check_urdf_text(path: Path) -> None:
-    """Refuse, with one line, URDF files that the URDF parser would reject: not XML, no
-    ``<robot>`` root, joints without name, type, parent or child, revolute or prismatic joints
-    whose ``<limit>`` lacks ``effort`` or ``velocity`` (urdfdom prints its own complaints on the
-    process's standard error; checking first keeps errors on one line without redirecting it)."""
-    import xml.etree.ElementTree as ET
-
-    try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise ModelError(f"URDF file {str(path)!r} does not parse: {exc}") from None
-    if root.tag != "robot":
-        raise ModelError(f"URDF file {str(path)!r} does not parse: the root element is <{root.tag}>; expected <robot>")
-    links = {link.get("name") for link in root.iter("link")}
-    for joint in root.findall("joint"):  # not root.iter: <transmission> elements hold <joint name=...> too
-        name = joint.get("name")
-        if not name or not joint.get("type"):
-            raise ModelError(f"URDF file {str(path)!r} does not parse: a joint lacks its name or type attribute")
-        for end in ("parent", "child"):
-            tag = joint.find(end)
-            if tag is None or tag.get("link") not in links:
-                raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: no {end} link, or an unknown one")
-        limit = joint.find("limit")
-        if joint.get("type") in ("revolute", "prismatic"):
-            if limit is None:
-                raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: a {joint.get('type')} joint needs a <limit>")
-            for key in ("effort", "velocity"):
-                if limit.get(key) is None:
-                    raise ModelError(f"URDF file {str(path)!r} does not parse: joint [{name}]: limit has no {key}")
-
-
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None,
                locked_joints: Mapping[str, float] | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
@@ -409,14 +396,18 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         ModelError: the file is missing or does not parse, the base floats, a joint is unsupported,
             a joint has no effort limit, or a joint moves no mass (zero mass and inertia).
     """
-    path = bundled_urdf("arm26") if urdf is None else Path(urdf).expanduser()
-    if not path.is_file():
-        raise ModelError(f"URDF file not found: {str(path)!r} (expected the path of an existing .urdf file)")
-    _check_urdf_text(path)
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
-        raise ModelError(f"URDF file {str(path)!r} does not parse: {' '.join(str(exc).split())}") from exc
+    path = _urdf_path(urdf)
+    check_urdf_text(path)
+    with quiet_stderr() as parser_lines:
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+            failure = exc
+        else:
+            failure = None
+    if failure is not None:  # the parser's own lines (urdfdom) say what is wrong; Pinocchio's message does not
+        said = [line.removeprefix("Error:").strip() for line in parser_lines if not line.startswith("at line")]
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {'; '.join(said + [' '.join(str(failure).split())])}") from failure
     _validate_joints(model, path)
     if locked_joints:
         model = lock_joints(model, dict(locked_joints), path)

@@ -131,6 +131,7 @@ def rebuild(run: RunResult) -> Stored:
 
 
 def _intervals(run: RunResult) -> int:
+    run.require_cycles("verify")  # a sliding run whose first window failed: named, not "0 nodes for 0 intervals"
     N = run.tau_plus.shape[0]
     if run.q.shape[0] != N + 1 or run.t.size != N + 1 or run.qdot.shape[0] != N + 1 or run.tau_minus.shape[0] != N:
         raise ResultFileError(f"run {run.name!r}: {run.q.shape[0]} nodes for {N} intervals; expected {N + 1}")

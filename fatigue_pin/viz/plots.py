@@ -217,7 +217,8 @@ def plot_solve_time(run: RunResult, out_dir: Path) -> list[Path]:
 
 
 def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
-    """Every per-run figure of ``run``."""
+    """Every per-run figure of ``run`` (ResultFileError for a run without a cycle)."""
+    run.require_cycles("plot")
     paths: list[Path] = []
     for plot in (plot_joint_angles, plot_fatigue_states, plot_torque_limits, plot_cycle_costs, plot_solve_time):
         paths += plot(run, out_dir)
@@ -324,7 +325,9 @@ def png_as_pdf(png: Path) -> Path:
 
 def plot_file(path: Path, out_dir: Path) -> list[Path]:
     """Every applicable figure of a result file: per run (and a comparison when there are
-    several), per max-cycles search, or a sweep's folder. Returns the files written."""
+    several), per max-cycles search, or a sweep's folder. Returns the files written. Runs
+    without a cycle (a sliding run whose first window failed) have no figure; a file of only
+    such runs is a ResultFileError."""
     path = Path(path)
     if path.is_dir() and (path / "summary.csv").is_file():  # a sweep's output folder
         from fatigue_pin.viz.sweeps import plot_sweep
@@ -333,6 +336,10 @@ def plot_file(path: Path, out_dir: Path) -> list[Path]:
     runs = list_runs(path)  # also checks that the file is readable HDF5
     if runs:
         loaded = [read_run(path, name) for name in runs]
+        with_cycles = [run for run in loaded if run.n_cycles > 0]  # a sliding run whose first window failed has none
+        if not with_cycles and not any(len(t) for t in read_search(path).values()):
+            loaded[0].require_cycles("plot")
+        loaded = with_cycles
         paths: list[Path] = []
         for run in loaded:
             paths += plot_run(run, out_dir)

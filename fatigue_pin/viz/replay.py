@@ -259,6 +259,7 @@ def _camera_for(frames: list[tuple[dict[str, np.ndarray], dict[str, np.ndarray]]
 
 
 def select_cycles(run: RunResult, cycles: Sequence[int] | None) -> list[int]:
+    run.require_cycles("replay")
     chosen = list(range(run.n_cycles)) if cycles is None else [int(c) for c in cycles]
     if not chosen:
         raise ResultFileError(f"run {run.name!r}: no cycle to replay")

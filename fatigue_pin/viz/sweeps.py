@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from fatigue_pin.sweep.jobs import read_summary  # noqa: E402
+from fatigue_pin.sweep.summary import read_summary  # noqa: E402
 
 DPI = 150
 

@@ -71,6 +71,37 @@ class Env:
 
         return self.write(name, change(bundled_urdf().read_text()))
 
+    def sweep(self) -> str:
+        """A sweep file of two jobs over the small curl."""
+        self.write("base.toml", to_toml(BASE))
+        return self.write("sweep.toml", 'base = "base.toml"\n[grid]\n"fatigue.S" = [0.0, 10.0]\n')
+
+    def empty_result(self) -> str:
+        import h5py
+
+        p = self.tmp / "empty.h5"
+        with h5py.File(p, "w") as h5:
+            h5.attrs["format"] = "fatigue_pin.results/2"
+        return str(p)
+
+    def result_without_cycles(self) -> str:
+        p = self.tmp / "failed.h5"
+        write_run(p, make_run("sliding/x", cycles=0))
+        return str(p)
+
+    def result_cut_q(self) -> str:
+        import h5py
+
+        p = self.tmp / "cut_q.h5"
+        write_run(p, make_run("full/a"))
+        with h5py.File(p, "a") as h5:
+            q = h5["full/a/q"][()]
+            joints = h5["full/a/q"].attrs["joints"]
+            del h5["full/a/q"]
+            h5["full/a"].create_dataset("q", data=q[:-1]).attrs["joints"] = joints
+        self.watched.append(p)
+        return str(p)
+
     def result(self, name: str, layout: int | None = None, truncate: bool = False) -> str:
         import h5py
 
@@ -85,6 +116,27 @@ class Env:
             p.write_bytes(data[: len(data) // 2])
         self.watched.append(p)
         return str(p)
+
+
+def _banner_server() -> str:
+    """The address of a server on 127.0.0.1 that sends an SSH banner to its one connection."""
+    import socket
+    import threading
+
+    listener = socket.create_server(("127.0.0.1", 0))
+    listener.settimeout(30)
+
+    def serve() -> None:
+        with listener:
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                return
+            with conn:
+                conn.sendall(b"SSH-2.0-OpenSSH_9.2p1\r\n")
+
+    threading.Thread(target=serve, daemon=True).start()
+    return f"tcp://127.0.0.1:{listener.getsockname()[1]}"
 
 
 def _set(*keys_value):
@@ -116,6 +168,9 @@ def _sliding(window: int, max_cycles: int):
     return mutate
 
 
+_ELBOW_LIMIT = '<limit lower="0.0" upper="3.141592653589793" effort="50.0" velocity="31.41592653589793"/>'
+
+
 def _zero_mass(text: str) -> str:
     text = re.sub(r'<mass value="[0-9.eE+-]+"\s*/>', '<mass value="0"/>', text)
     return re.sub(r"<inertia [^/]*/>", '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>', text)
@@ -145,6 +200,7 @@ def _run(study: Callable[[Env], str]) -> Callable[[Env], list[str]]:
 
 
 CLI, PATHS, URDF, STUDY, API, FILES = "command line", "paths", "URDF", "study file", "Python API", "result files"
+FATIGUE, SWEEP = "fatigue data", "sweeps"
 
 CASES: list[Case] = [
     # -- the command line ----------------------------------------------------------------------
@@ -165,6 +221,9 @@ CASES: list[Case] = [
          lambda e: ["solve", "sliding", "--window", "4", "--max-cycles", "2", "--out", str(e.existing)]),
     Case("advance-beyond-window", CLI, "`solve sliding --window 2 --advance 3`", r"horizon.advance = 3",
          lambda e: ["solve", "sliding", "--window", "2", "--advance", "3", "--out", str(e.existing)]),
+    Case("unknown-linear-solver", CLI, "`solve full --linear-solver foo`",
+         r"solver.linear_solver = 'foo': not a valid IPOPT setting; expected one of \['ma27', 'ma57'",
+         lambda e: ["solve", "full", "--linear-solver", "foo", "--no-compile", "--out", str(e.existing)]),
     Case("n-max-zero", CLI, "`max-cycles --n-max 0`", r"--n-max 0: expected an integer number of cycles >= 1",
          lambda e: ["max-cycles", "--n-max", "0", "--out", str(e.existing)]),
     Case("negative-max-iter", CLI, "`--max-iter -1`", r"solver.max_iter = -1: expected an integer >= 0",
@@ -221,6 +280,32 @@ CASES: list[Case] = [
              'lower="0.0" upper="3.141592653589793" effort="50.0"', 'lower="0.0" upper="3.141592653589793" effort="0"'))]),
     Case("urdf-zero-mass", URDF, "links of zero mass (in a study's `model.urdf`)", r"joint 'shoulder' moves no mass",
          _run(lambda e: e.study(_set("model", "urdf", e.urdf(_zero_mass, "massless.urdf"))))),
+    Case("urdf-is-folder", URDF, "a URDF path that is a folder", r"URDF path '.*' is a folder; expected the path of a .urdf file",
+         lambda e: ["info", "--urdf", str(e.tmp)]),
+    Case("urdf-empty-path", URDF, "`run --set model.urdf=` (empty)", r"model.urdf = '': expected a bundled model name",
+         lambda e: ["run", e.study(), "--set", "model.urdf=", "--out", str(e.existing)]),
+    Case("urdf-negative-mass", URDF, "a link of negative mass", r"link 'humerus' has mass -1.86457; expected a mass >= 0",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('<mass value="1.864572"/>', '<mass value="-1.864572"/>'))]),
+    Case("urdf-negative-inertia", URDF, "a link with a negative moment of inertia", r"link 'humerus' has ixx = -0.01481; expected moments",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('ixx="0.01481"', 'ixx="-0.01481"'))]),
+    Case("urdf-lower-above-upper", URDF, "a lower limit above the upper limit", r"joint 'elbow' has lower limit 2 above its upper limit 1",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="2" upper="1"'))]),
+    Case("urdf-nan-limit", URDF, "a NaN limit", r"joint \[elbow\]: <limit upper='nan'>: expected a finite number",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="0.0" upper="nan"'))]),
+    Case("urdf-word-for-number", URDF, "a word where a number belongs", r"joint \[elbow\]: <limit lower='zero'>: expected a finite number",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="zero" upper="3"'))]),
+    Case("urdf-vector-size", URDF, "an `<origin xyz>` of two numbers", r"<origin xyz='0.0061 -0.2904'>: expected 3 finite numbers",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('xyz="0.0061 -0.2904 -0.0123"', 'xyz="0.0061 -0.2904"'))]),
+    Case("urdf-zero-axis", URDF, "a joint axis `0 0 0`", r"joint 'elbow' has axis xyz = '0 0 0'; expected a non-zero axis",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('<axis xyz="0.049400012 0.036600009 0.998108250"/>', '<axis xyz="0 0 0"/>'))]),
+    Case("urdf-mass-without-value", URDF, "a `<mass/>` without its value (read as 0 by the parser)",
+         r"link \[humerus\]: <mass> has no value; expected <mass value=",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('<mass value="1.864572"/>', "<mass/>"))]),
+    Case("urdf-duplicate-joint", URDF, "two joints of the same name", r"two joints are named 'shoulder'; expected unique joint names",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="elbow" type="revolute"', 'name="shoulder" type="revolute"'))]),
+    Case("urdf-unknown-joint-type", URDF, "a joint of an unknown type (the parser's own message, on one line)",
+         r"does not parse: Joint \[elbow\] has no known type \[weird\]",
+         lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="elbow" type="revolute"', 'name="elbow" type="weird"'))]),
     # -- study files -------------------------------------------------------------------------------
     Case("study-not-toml", STUDY, "a study file that is not TOML", r"is not valid TOML",
          lambda e: ["run", e.write("bad.toml", "name = \n[model"), "--out", str(e.existing)]),
@@ -272,6 +357,25 @@ CASES: list[Case] = [
          _run(lambda e: e.study(_set("task", "q_init", [0.07, -1.0])))),
     Case("q-init-wrong-length", STUDY, "`task.q_init = [0.07]`", r"task q_init has 1 entries; model 'arm26' has nq = 2",
          _run(lambda e: e.study(_set("task", "q_init", [0.07])))),
+    Case("two-targets-one-phase", STUDY, "two elbow targets at phase 0.5 with different values",
+         r"task targets 2.617\d* \(\+- 0\) and 1.0 \(\+- 0\) of joint 'elbow' at phase 0.5: expected one target per joint and phase",
+         _run(lambda e: e.study(lambda d: d["task"]["targets"].append({"joint": "elbow", "value": 1.0, "at": 0.5})))),
+    Case("q-init-off-target", STUDY, "`task.q_init` with the elbow at 0.5 rad, its phase-0 target at 15 deg",
+         r"task q_init = \[0.07, 0.5\] puts joint 'elbow' at 0.5, but its target at phase 0 is 0.261\d* \(\+- 0\)",
+         _run(lambda e: e.study(_set("task", "q_init", [0.07, 0.5])))),
+    Case("absurd-cycles", STUDY, "`horizon.cycles = 100000000000000000000`",
+         r"cycles = 100000000000000000000: .* shooting intervals; expected at most 1000000 in one OCP",
+         _run(lambda e: e.study(_set("horizon", "cycles", 10**20)))),
+    Case("absurd-intervals", STUDY, "`task.intervals_per_cycle = 1000000000000`",
+         r"intervals_per_cycle = 1000000000000: expected an integer in \[1, 1000000\]",
+         _run(lambda e: e.study(_set("task", "intervals_per_cycle", 10**12)))),
+    Case("absurd-substeps", STUDY, "`transcription.substeps = 1000000000`", r"substeps = 1000000000: expected an integer in \[1, 1000\]",
+         _run(lambda e: e.study(_set("transcription", "substeps", 10**9)))),
+    Case("ipopt-unknown-option", STUDY, "`solver.ipopt.nosuch = 3`", r"solver.ipopt.nosuch: IPOPT has no option 'nosuch'",
+         _run(lambda e: e.study(lambda d: d["solver"].update(ipopt={"nosuch": 3})))),
+    Case("ipopt-bad-setting", STUDY, '`solver.ipopt.mu_strategy = "weird"`',
+         r"solver.ipopt.mu_strategy = 'weird': not a valid IPOPT setting; expected one of \['monotone', 'adaptive'\]",
+         _run(lambda e: e.study(lambda d: d["solver"].update(ipopt={"mu_strategy": "weird"})))),
     Case("window-longer-than-run-file", STUDY, "a sliding window of 4 cycles with `max_cycles = 2`",
          r"horizon.max_cycles = 2: expected at least the window",
          _run(lambda e: e.study(_sliding(4, 2)))),
@@ -294,8 +398,51 @@ CASES: list[Case] = [
          lambda e: ["replay", str(e.existing), "--run", "nope", "--html", e.path("r.html")]),
     Case("file-several-runs", FILES, "`replay` a file of several runs without `--run`", r"holds 2 runs \['full/a', 'full/b'\]; choose one",
          lambda e: ["replay", str(e.existing), "--html", e.path("r.html")]),
+    Case("file-empty", FILES, "`replay` a result file that holds no run", r"'.*empty.h5' holds no run; expected a result file with a run",
+         lambda e: ["replay", e.empty_result(), "--html", e.path("r.html")]),
+    Case("run-file-several-runs", FILES, "`run FILE.h5` of a file of several runs, without `--run`",
+         r"holds 2 runs \['full/a', 'full/b'\]; choose one by name \(--run NAME\)",
+         lambda e: ["run", str(e.existing), "--out", e.path("new.h5")]),
+    Case("run-without-cycles", FILES, "`plot` a sliding run whose first window failed (no cycle)",
+         r"run 'sliding/x' has no cycle to plot: no window converged .*'sliding/x_failed_window'",
+         lambda e: ["plot", e.result_without_cycles(), "--out", e.path("figures")]),
+    Case("datasets-disagree", FILES, "`replay` a run whose datasets disagree in length (q has a row too few)",
+         r"run 'full/a': t has 21 nodes and cycle_costs 2 cycles, but the rows of \{'q': 20\} disagree",
+         lambda e: ["replay", e.result_cut_q(), "--run", "full/a", "--html", e.path("r.html")]),
     Case("rerun-without-study", FILES, "`rerun` a run built in Python (no stored study)", r"holds no run with a stored study",
          lambda e: ["rerun", str(e.existing), "--out", str(e.existing)]),
+    # -- run names ---------------------------------------------------------------------------------
+    Case("run-name-parent-group", FILES, "`run --name full` where the file holds full/a and full/b",
+         r"run name 'full' is the group of \['full/a', 'full/b'\] in '.*existing.h5'; a run replaces only a run of the same name",
+         lambda e: ["run", e.study(), "--name", "full", "--out", str(e.existing)]),
+    Case("run-name-inside-run", FILES, "`run --name full/a/x` (inside run full/a)", r"run name 'full/a/x' lies inside run 'full/a'",
+         lambda e: ["run", e.study(), "--name", "full/a/x", "--out", str(e.existing)]),
+    Case("run-name-grammar", FILES, "`run --name a//b` (an empty segment; also `.`, `/`, `search/...`)",
+         r"run name 'a//b': expected segments of letters, digits and _ - . \+ = , separated by '/'",
+         lambda e: ["run", e.study(), "--name", "a//b", "--out", str(e.existing)]),
+    # -- fatigue data: presets, endurance CSVs, endurance tasks ------------------------------------
+    Case("preset-json-shape", FATIGUE, "a preset JSON whose `model` is a list", r"model = \['3cc'\]: expected one of",
+         lambda e: ["endurance", "--preset", e.write("p.json", '{"model": ["3cc"], "F": 0.01, "R": 0.001, "LD": 10, "LR": 10}'),
+                    "--loads", "0.5", "--no-compare", "--out", e.path("endurance")]),
+    Case("csv-duplicated-column", FATIGUE, "an endurance CSV with a column twice",
+         r"column\(s\) \['target_load'\] appear more than once",
+         lambda e: ["calibrate", e.write("d.csv", "target_load,endurance_time_s,target_load\n0.5,100,0.6\n0.3,300,0.4\n"),
+                    "--out", e.path("p.json")]),
+    Case("csv-tiny-times", FATIGUE, "endurance times of 1e-300 s (the fit would overflow)",
+         r"endurance_time_s = 1e-300: expected a time in \[0.001, 1e\+09\) s",
+         lambda e: ["calibrate", e.write("d.csv", "target_load,endurance_time_s\n0.5,1e-300\n0.3,2e-300\n"), "--out", e.path("p.json")]),
+    Case("empty-loads", FATIGUE, "`endurance --loads ,` (no load)", r"--loads ',': expected comma-separated fractions",
+         lambda e: ["endurance", "--loads", ",", "--out", e.path("endurance")]),
+    Case("endurance-too-many-cycles", FATIGUE, "an intermittent task of 0.01 s cycles beyond `--max-cycles 20`",
+         r"max_cycles = 20 cycles of 0.01 s \(0.2 s\) simulated at TL = 0.5 without failure",
+         lambda e: ["endurance", "--loads", "0.5", "--duty-cycle", "0.5", "--cycle-s", "0.01", "--max-cycles", "20",
+                    "--no-compare", "--out", e.path("endurance")]),
+    # -- sweeps on an existing Dask scheduler -----------------------------------------------------
+    Case("scheduler-malformed", SWEEP, "`sweep --scheduler tcp://127.0.0.1:http`", r"--scheduler 'tcp://127.0.0.1:http': expected tcp://HOST:PORT",
+         lambda e: ["sweep", e.sweep(), "--scheduler", "tcp://127.0.0.1:http", "--out", e.path("sweep")]),
+    Case("scheduler-other-protocol", SWEEP, "`sweep --scheduler` a port that answers with an SSH banner",
+         r"--scheduler 'tcp://127.0.0.1:\d+' answered 'SSH-2.0-OpenSSH_9.2p1', another protocol; expected a Dask scheduler",
+         lambda e: ["sweep", e.sweep(), "--scheduler", _banner_server(), "--out", e.path("sweep")]),
     # -- the Python API ----------------------------------------------------------------------------
     Case("x-init-sum", API, "`Problem(..., x_init)` with ma + mr + mf = 1.5 on a half",
          r"x_init of actuator half 'shoulder_plus': ma = 0.5, mr = 1, mf = 0; ma \+ mr \+ mf = 1.5, expected 1",

@@ -1,9 +1,12 @@
-"""Runs killed with SIGKILL at chosen and random moments (during a write of the result file, and
-during a solve) resume to the uninterrupted result; the file always opens and loses nothing
-finished. The full version (20 kills of each kind): ``benchmarks/kill_resume.py``."""
+"""Runs killed with SIGKILL, or stopped with SIGINT or SIGTERM (exit codes 130, 143), at chosen and
+random moments (during a write of the result file, and during a solve) resume to the
+uninterrupted result; the file always opens and loses nothing finished, and an interrupted solve
+is never stored as finished or converged. The full version (20 kills of each kind):
+``benchmarks/kill_resume.py``."""
 
 from __future__ import annotations
 
+import signal
 import sys
 from pathlib import Path
 
@@ -11,7 +14,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
-from kill_resume import campaign, report  # noqa: E402
+from kill_resume import campaign, report, segment  # noqa: E402
 
 
 def _check(fig, kills):
@@ -42,3 +45,36 @@ def test_twenty_random_kills(tmp_path, kind, n):
     fig = campaign(kind, n, 20, tmp_path, seed=7)
     print(report([fig]))
     _check(fig, 20)
+
+
+def test_sigint_and_sigterm_stop_a_sliding_run_that_resumes_to_the_same_result(tmp_path):
+    """SIGINT during the second window's solve, then SIGTERM at the fsync of a write of the
+    resumed run: the child exits with 130 and 143 (it handles them as fatigue-pin does), the
+    file keeps every finished window, and the run resumes to the uninterrupted result."""
+    fig = campaign("sliding", 5, 2, tmp_path, plan=[("after-write", 0.3, signal.SIGINT), ("at", "fsync", signal.SIGTERM)],
+                   say=lambda _: None)
+    _check(fig, 2)
+
+
+def test_an_interrupted_window_is_stored_as_interrupted_and_resumed(tmp_path):
+    """The run stored after SIGINT mid-solve is neither finished nor converged, names the
+    signal, and holds only the windows finished before it; --resume continues it."""
+    from fatigue_pin.io.results import read_run
+
+    out = tmp_path / "run.h5"
+    written, killed, last, _ = segment("sliding", out, 5, ("after-write", 0.3, signal.SIGINT))
+    assert killed and written >= 1
+    run = read_run(out, "run")
+    assert run.attrs["interrupted"] == "SIGINT" and not run.attrs["finished"] and not run.attrs["converged"]
+    assert len(run.windows) == written and all(bool(w["converged"]) for w in run.windows)
+    assert b"NonIpopt" not in b"".join(bytes(w["status"]) for w in run.windows)
+    segment("sliding", out, 5, None)
+    run = read_run(out, "run")
+    assert run.attrs["finished"] and "interrupted" not in run.attrs and run.n_cycles == 5
+
+
+def test_sigterm_stops_a_search(tmp_path):
+    """SIGTERM during a solve of the maximum-repetitions search: exit 143, the search stops (no
+    further N is tried), every finished N is kept, and it resumes to the uninterrupted result."""
+    fig = campaign("max-cycles", 3, 1, tmp_path, plan=[("after-write", 0.2, signal.SIGTERM)], say=lambda _: None)
+    _check(fig, 1)

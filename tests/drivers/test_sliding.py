@@ -239,3 +239,26 @@ def test_shift_maps_move_every_variable_and_row_by_the_advance(runner):
     assert ocp.transcription.torque_variable
     assert np.array_equal(moved[: nv * (N - n)], lam[: nv * (N - n)] + nv * n)
     assert np.array_equal(moved[nv * (N - n) : nv * N], lam[nv * (N - n) : nv * N])
+def test_a_run_replaces_one_of_the_same_name_only_when_complete(full_run, runner, tmp_path):
+    """A new run (not a resume) under the name of a run already in the file keeps its windows
+    under ``<name>_in_progress``: stopped after a window, the old run is still whole; resumed
+    to the end, it replaces the old run and the run in progress is gone."""
+    import shutil
+
+    from fatigue_pin.drivers.run import in_progress_name
+
+    reference, path = full_run
+    out = tmp_path / "replace.h5"
+    shutil.copy(path, out)
+    name = reference.name
+    before = read_run(out, name)
+    partial = runner.run(ResultFile(out), name=name, stop_after=1)
+    assert partial.name == in_progress_name(name) and partial.windows.shape == (1,)
+    kept = read_run(out, name)
+    assert kept.windows.shape == before.windows.shape and np.array_equal(kept.q, before.q)
+    assert list_runs(out) == [name]  # the run in progress is not listed with the runs
+    assert in_progress_name(name) in list_runs(out, failed_windows=True)
+    done = runner.run(ResultFile(out), name=name, resume=True)
+    assert done.name == name and done.windows.shape == reference.windows.shape
+    assert list_runs(out, failed_windows=True) == [name]
+    assert np.allclose(read_run(out, name).q, reference.q, atol=1e-9)

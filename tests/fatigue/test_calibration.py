@@ -103,7 +103,9 @@ def test_exactly_as_many_rows_as_parameters_fits_without_cis():
     "rows, header, message",
     [
         ([(0.5, 100.0)], "target_load,endurance_time_s", "1 data row(s) for the 3cc model: expected at least 2"),
-        ([(0.5, -3.0), (0.6, 50.0)], "target_load,endurance_time_s", "row 1: endurance_time_s = -3.0: expected a finite time > 0 (s)"),
+        ([(0.5, -3.0), (0.6, 50.0)], "target_load,endurance_time_s", "row 1: endurance_time_s = -3.0: expected a time in [0.001, 1e+09) s"),
+        ([(0.5, 1e-300), (0.6, 2e-300)], "target_load,endurance_time_s", "row 1: endurance_time_s = 1e-300: expected a time in [0.001"),
+        ([(0.5, 100.0, 0.7), (0.6, 50.0, 0.8)], "target_load,endurance_time_s,target_load", "column(s) ['target_load'] appear more than once"),
         ([(0.5, "nan"), (0.6, 50.0)], "target_load,endurance_time_s", "endurance_time_s = nan"),
         ([(0.5, "inf"), (0.6, 50.0)], "target_load,endurance_time_s", "endurance_time_s = inf"),
         ([(0.5, 100.0), (1.2, 50.0)], "target_load,endurance_time_s", "row 2: target_load = 1.2: expected a fraction of maximum in (0, 1]"),
@@ -123,6 +125,32 @@ def test_bad_data_is_refused_with_one_clear_line(tmp_path, rows, header, message
         calibrate(read_endurance_csv(path))
     assert "\n" not in str(info.value)
     assert isinstance(info.value, ParameterError) and isinstance(info.value, FatiguePinError)
+
+
+def test_a_byte_order_mark_is_read(tmp_path):
+    """Excel writes UTF-8 CSV files with a byte-order mark before the first column's name."""
+    rows = [(tl, et) for tl, et in zip(LOADS, sustained_et_closed_form(F, R, LOADS))]
+    plain = write_csv(tmp_path / "plain.csv", rows)
+    marked = tmp_path / "excel.csv"
+    marked.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    a, b = read_endurance_csv(plain), read_endurance_csv(marked)
+    np.testing.assert_array_equal(a.target_load, b.target_load)
+    np.testing.assert_array_equal(a.endurance_time_s, b.endurance_time_s)
+    assert calibrate(b).params["F"] == pytest.approx(F, rel=1e-6)
+
+
+@pytest.mark.parametrize("scale", [1e-3, 2e-3, 1e8])
+def test_extreme_but_accepted_times_fit_or_fail_with_one_line(scale):
+    """Times at the ends of the accepted range, with intermittent rows of very short cycles: the
+    fit ends at finite parameters or raises the project's error, never an overflow."""
+    tl = np.array([0.2, 0.5, 0.8])
+    data = EnduranceData.from_arrays(tl, scale * np.array([3.0, 2.0, 1.0]), [0.5, 1.0, 0.5], [1e-3, np.nan, 1e-3])
+    try:
+        res = calibrate(data, model="3cc-r")
+    except CalibrationDataError as exc:
+        assert "\n" not in str(exc)
+    else:
+        assert all(np.isfinite(v) and v > 0 for v in res.params.values())
 
 
 def test_3cc_r_needs_intermittent_rows():
@@ -154,3 +182,15 @@ def test_cli_calibrate_checks_output_before_reading(tmp_path, out, message):
     args = _parser().parse_args(["calibrate", str(tmp_path / "absent.csv"), "--out", str(tmp_path / out)])
     with pytest.raises(OutputLocationError, match=re.escape(message)):
         args.func(args)
+
+
+@pytest.mark.parametrize("text", ["target_load;endurance_time_s\n0,5;100\n0,3;300\n", "target_load\tendurance_time_s\n0.5\t100\n0.3\t300\n",
+                                  "target_load,endurance_time_s\r\n0.5,100\r\n0.3,300\r\n"])
+def test_excel_separators_and_decimal_commas_are_read(tmp_path, text):
+    """Excel writes ';' with decimal commas where the comma is the decimal mark; tabs and
+    Windows line ends are common too: all read as the same data."""
+    path = tmp_path / "data.csv"
+    path.write_text(text)
+    data = read_endurance_csv(path)
+    np.testing.assert_array_equal(data.target_load, [0.5, 0.3])
+    np.testing.assert_array_equal(data.endurance_time_s, [100.0, 300.0])

@@ -16,12 +16,11 @@ from fatigue_pin.fatigue.endurance import (
     compare_frey_law_avin,
     endurance_table,
     endurance_time,
-    format_comparison,
     intermittent_et_closed_form,
     power_model_et,
-    run_endurance,
     sustained_et_closed_form,
 )
+from fatigue_pin.fatigue.endurance_report import format_comparison, run_endurance
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.michaud import MichaudFatigue
 from fatigue_pin.fatigue.models import XiaFatigue
@@ -191,3 +190,42 @@ def test_cli_endurance_checks_output_first(tmp_path):
     args = _parser().parse_args(["endurance", "--out", str(tmp_path / "e"), "--duty-cycle", "0.5"])
     with pytest.raises(ParameterError, match="--cycle-s"):
         args.func(args)
+
+
+def test_intermittent_task_is_bounded_and_shows_progress(monkeypatch):
+    """A very frequent intermittent task simulates at most max_cycles cycles, with a progress
+    line every PROGRESS_EVERY cycles, then stops with one line naming the bound."""
+    import fatigue_pin.fatigue.endurance as endurance
+
+    monkeypatch.setattr(endurance, "PROGRESS_EVERY", 10)
+    lines: list[str] = []
+    with pytest.raises(ParameterError, match=r"max_cycles = 35 cycles of 0.01 s \(0.35 s\) simulated at TL = 0.5") as err:
+        endurance_time(ELBOW, 0.5, 0.5, 0.01, max_cycles=35, progress=lines.append)
+    assert "\n" not in str(err.value)
+    assert [line.split(":")[1].split("(")[0].strip() for line in lines] == [f"cycle {k} of at most 35" for k in (10, 20, 30)]
+    # A bound that the task stays within changes nothing: 10 s cycles at TL = 0.5 fail in cycle 25.
+    et = endurance_time(ELBOW, 0.5, 0.5, 10.0)
+    assert endurance_time(ELBOW, 0.5, 0.5, 10.0, max_cycles=25) == et
+    assert et == pytest.approx(intermittent_et_closed_form(ELBOW.F, ELBOW.R, 0.5, 0.5, 10.0), rel=2e-3)
+    with pytest.raises(ParameterError, match="max_cycles = 0: expected an integer"):
+        endurance_time(ELBOW, 0.5, 0.5, 10.0, max_cycles=0)
+
+
+def test_cli_endurance_max_cycles_and_empty_loads(tmp_path, capsys):
+    args = _parser().parse_args(["endurance", "--out", str(tmp_path / "e"), "--loads", "0.5", "--duty-cycle", "0.5",
+                                 "--cycle-s", "0.01", "--max-cycles", "20", "--no-compare"])
+    with pytest.raises(ParameterError, match="max_cycles = 20 cycles of 0.01 s"):
+        args.func(args)
+    for loads in (",", "", " , "):
+        with pytest.raises(SystemExit):
+            _parser().parse_args(["endurance", "--out", str(tmp_path / "e"), "--loads", loads])
+        assert f"--loads {loads!r}: expected comma-separated fractions" in capsys.readouterr().err
+    with pytest.raises(ParameterError, match=r"loads = \[\]: expected at least one target load"):
+        endurance_table(ELBOW, [])
+
+
+def test_closed_form_when_the_on_part_saturates():
+    """R d T so large that exp(-R d T) underflows to 0: each "on" part reaches F TL / R, and the
+    first one fails as a sustained task would (was a division by zero)."""
+    et = intermittent_et_closed_form(2e3, 1e3, 0.5, 0.5, 10.0)
+    assert et == pytest.approx(sustained_et_closed_form(2e3, 1e3, 0.5)) and et == pytest.approx(math.log(2) / 1e3)

@@ -102,6 +102,8 @@ def test_json_preset(tmp_path):
     [
         ("not json", "not readable JSON"),
         ("[1, 2]", "holds a list"),
+        ('{"model": ["3cc"], "F": 0.01, "R": 0.001, "LD": 10, "LR": 10}', "model = ['3cc']: expected one of"),
+        ('{"model": {"kind": "3cc"}, "F": 0.01}', "model = {'kind': '3cc'}: expected one of"),
         ('{"model": "hill", "F": 1}', "model = 'hill'"),
         ('{"model": "3cc", "F": 0.01, "LD": 10, "LR": 10}', "has no 'R'"),
         ('{"model": "3cc", "F": "fast", "R": 0.001, "LD": 10, "LR": 10}', "F = 'fast': expected a finite number"),

@@ -113,7 +113,7 @@ def test_a_damaged_run_is_one_error(tmp_path, monkeypatch):
         raise OSError("Can't read data (wrong B-tree signature)")
 
     monkeypatch.setattr(results, "_read_run", broken)
-    with pytest.raises(ResultFileError, match=r"run 'full/a' in '.*a.h5' cannot be read \(Can't read data"):
+    with pytest.raises(ResultFileError, match=r"run 'full/a' in '.*a.h5' cannot be read \(OSError: Can't read data"):
         read_run(path, "full/a")
 
 
@@ -263,3 +263,31 @@ def test_check_output_dir(tmp_path):
         results.check_output_dir(tmp_path / "file")
     with pytest.raises(ResultFileError, match="cannot be created: .* is not a folder"):
         results.check_output_dir(tmp_path / "file" / "sub")
+
+
+def test_an_output_that_is_a_symbolic_link_is_written_through(tmp_path):
+    """``--out link.h5`` pointing at a result file elsewhere: the run is added to the target, the
+    link stays a link (it was replaced by a regular file); a link whose target does not exist
+    yet creates the target; other atomic writes (core.files.atomic_write) do the same."""
+    from fatigue_pin.core.files import atomic_write_bytes
+    from fatigue_pin.io.results import check_output
+
+    store = tmp_path / "store"
+    store.mkdir()
+    target = store / "runs.h5"
+    write_run(target, make_run("full/a"))
+    link = tmp_path / "link.h5"
+    link.symlink_to(target)
+    assert check_output(link) == target
+    write_run(link, make_run("full/b"))
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert list_runs(target) == ["full/a", "full/b"] == list_runs(link)
+    dangling = tmp_path / "new.h5"
+    dangling.symlink_to(store / "new_target.h5")
+    write_run(dangling, make_run("full/c"))
+    assert dangling.is_symlink() and list_runs(store / "new_target.h5") == ["full/c"]
+    text_link = tmp_path / "notes.json"
+    text_link.symlink_to(store / "notes.json")
+    atomic_write_bytes(text_link, b"{}")
+    assert text_link.is_symlink() and (store / "notes.json").read_bytes() == b"{}"
+    assert not list(tmp_path.glob("*.tmp")) and not list(store.glob("*.tmp"))

@@ -169,6 +169,51 @@ def test_model_locked_joints_key_reduces_the_model():
     bad = study.replace({"model.locked_joints": {"panda_finger_joint9": 0.0}})
     with pytest.raises(ModelError, match="joint 'panda_finger_joint9' is not in panda.urdf"):
         bad.model()
+def test_a_study_read_from_a_pipe(tmp_path):
+    """``fatigue-pin run /dev/stdin`` (a pipe, not a regular file) reads the study; a pipe that
+    carries no TOML gets the usual one-line error."""
+    import os
+    import threading
+
+    text = small_curl("full").to_toml()
+    for payload, expected in ((text, None), ("name = \n[model", "is not valid TOML")):
+        fifo = tmp_path / "pipe"
+        if fifo.exists():
+            fifo.unlink()
+        os.mkfifo(fifo)
+        writer = threading.Thread(target=lambda p=payload: fifo.write_text(p), daemon=True)
+        writer.start()
+        if expected is None:
+            assert Study.from_file(fifo).to_toml() == text
+        else:
+            with pytest.raises(StudyError, match=expected):
+                Study.from_file(fifo)
+        writer.join(5)
+
+
+def test_run_names_the_run_of_a_result_file_whose_study_to_use(tmp_path, capsys):
+    """``fatigue-pin run FILE.h5 --run NAME``: a file of several runs needs the name (before, it
+    had no way to name one); ``--run`` with a TOML study is refused."""
+    import dataclasses
+
+    from conftest import make_run
+    from fatigue_pin.io.results import write_run
+
+    path = tmp_path / "runs.h5"
+    for name, S in (("full/a", 0.0), ("full/b", 10.0)):
+        write_run(path, dataclasses.replace(make_run(name), study=small_curl("full", S=S).to_toml()))
+    assert Study.from_file(path, "full/a").data["fatigue"]["S"] == 0.0
+    assert Study.from_file(path, "full/b").data["fatigue"]["S"] == 10.0
+    assert main(["run", str(path), "--out", str(tmp_path / "new.h5")]) == 2
+    assert "choose one by name (--run NAME)" in capsys.readouterr().err
+    assert main(["run", str(path), "--run", "full/c", "--out", str(tmp_path / "new.h5")]) == 2
+    assert "run 'full/c' is not in" in capsys.readouterr().err
+    toml = tmp_path / "s.toml"
+    toml.write_text(small_curl("full").to_toml())
+    with pytest.raises(StudyError, match="is a study file, not an HDF5 result file"):
+        Study.from_file(toml, "full/a")
+
+
 def test_run_study_returns_one_result_type_for_every_horizon_kind(tmp_path):
     """Full, sliding and max-cycles all give a StudyResult: the run, the repetitions, whether it
     converged, the search table when there is one, and a one-line outcome."""

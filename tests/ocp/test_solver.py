@@ -84,3 +84,40 @@ def test_failure_kinds_tell_infeasibility_from_limits():
     assert failure_kind("Maximum_Iterations_Exceeded", [1.0, 1e-3, 1e-6], 1e-4) == "not-converged"
     assert failure_kind("Maximum_WallTime_Exceeded", [1.0, 0.5, 0.4], 1e-4) == "not-converged"
     assert failure_kind("Error_In_Step_Computation", [1e-9], 1e-4) == "numerical"
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(ipopt={"nosuchoption": 3}), r"solver.ipopt.nosuchoption: IPOPT has no option 'nosuchoption'"),
+    (dict(linear_solver="foo"), r"solver.linear_solver = 'foo': not a valid IPOPT setting; expected one of \['ma27', .*'mumps'"),
+    (dict(ipopt={"mu_strategy": "weird"}), r"solver.ipopt.mu_strategy = 'weird': .* expected one of \['monotone', 'adaptive'\]"),
+    (dict(ipopt={"acceptable_tol": -1.0}), r"solver.ipopt.acceptable_tol = -1.0: not a valid IPOPT setting; expected a value in 0 <"),
+    (dict(ipopt={"tol": "abc"}), r"solver.ipopt.tol = 'abc': IPOPT expects another type of value"),
+])
+def test_ipopt_options_are_checked_before_any_work(options, message, capfd):
+    with pytest.raises(ParameterError, match=message) as err:
+        SolverOptions(**options).check_ipopt()
+    assert "\n" not in str(err.value)
+    assert capfd.readouterr().out == ""  # IPOPT's option documentation is kept out of the terminal
+
+
+def test_valid_ipopt_options_pass(capfd):
+    SolverOptions().check_ipopt()
+    SolverOptions(linear_solver="mumps", ipopt={"mu_strategy": "adaptive", "hessian_approximation": "limited-memory"}).check_ipopt()
+    assert capfd.readouterr().out == ""
+
+
+@pytest.mark.parametrize("linear_solver", ["ma27", "ma57", "pardiso"])
+def test_a_linear_solver_that_cannot_be_loaded_is_an_error_not_a_failed_solve(linear_solver):
+    """Where the library of an HSL or Pardiso solver is missing, the check names it (a search
+    used to report "0 repetitions"); where it is installed, a solve with it converges."""
+    import casadi as ca
+
+    try:
+        SolverOptions(linear_solver=linear_solver).check_ipopt()
+    except ParameterError as exc:
+        assert f"solver.linear_solver = {linear_solver!r} cannot be used on this machine (" in str(exc)
+        assert "expected an installed linear solver, e.g. 'mumps'" in str(exc)
+    else:
+        x = ca.SX.sym("x")
+        solver = ca.nlpsol("s", "ipopt", {"x": x, "f": (x - 1) ** 2}, SolverOptions(linear_solver=linear_solver).ipopt_options())
+        assert float(solver(x0=0.0)["x"]) == pytest.approx(1.0) and solver.stats()["success"]

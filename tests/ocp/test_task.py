@@ -90,3 +90,52 @@ def test_task_checks_against_the_model(arm26):
         Task(1.0, 10, q_init=(0.0, 9.0)).check(arm26)
     with pytest.raises(TaskError, match="nq = 2"):
         Task(1.0, 10, q_init=(0.0,)).check(arm26)
+
+
+def test_one_target_per_joint_and_phase():
+    """Two targets of one joint at one node that differ are refused (the later one replaced the
+    earlier one's bounds); identical ones, and ones on other joints or phases, are accepted.
+    Phase 0 and a phase that rounds to node 0 are the same node."""
+    with pytest.raises(TaskError, match=r"task targets 2.0 \(\+- 0\) and 1.0 \(\+- 0\) of joint 'elbow' at phase 0.5"):
+        Task(1.0, 10, (JointTarget("elbow", 2.0, 0.5), JointTarget("elbow", 1.0, 0.5)))
+    with pytest.raises(TaskError, match=r"and 2.0 \(\+- 0.1\) of joint 'elbow'"):
+        Task(1.0, 10, (JointTarget("elbow", 2.0, 0.5), JointTarget("elbow", 2.0, 0.5, tolerance=0.1)))
+    task = Task(1.0, 10, (JointTarget("elbow", 2.0, 0.5), JointTarget("elbow", 2.0, 0.5), JointTarget("shoulder", 1.0, 0.5),
+                          JointTarget("elbow", 1.0, 0.0)))
+    assert len(task.joint_targets) == 4
+
+
+def test_q_init_must_meet_the_phase_0_targets(arm26):
+    """A q_init off a phase-0 target was overridden at node 0 without a word; now it is refused,
+    within the target's tolerance it is accepted, and without q_init the start is the target."""
+    with pytest.raises(TaskError, match=r"q_init = \[0.07, 0.5\] puts joint 'elbow' at 0.5, but its target at phase 0 is 0.3"):
+        Task(1.0, 10, (JointTarget("elbow", 0.3, 0.0),), q_init=(0.07, 0.5)).check(arm26)
+    Task(1.0, 10, (JointTarget("elbow", 0.3, 0.0, tolerance=0.25),), q_init=(0.07, 0.5)).check(arm26)
+    Task(1.0, 10, (JointTarget("elbow", 0.3, 0.5),), q_init=(0.07, 0.5)).check(arm26)  # not at phase 0
+    assert Task(1.0, 10, (JointTarget("elbow", 0.3, 0.0),)).initial_configuration(arm26)[1] == 0.3
+
+
+def test_x_init_must_meet_the_phase_0_targets():
+    from fatigue_pin.core.errors import ParameterError
+
+    problem = small_curl("full").problem()
+    x = problem.initial_state()
+    x[1] += 0.2
+    with pytest.raises(ParameterError, match=r"x_init's q = .* puts joint 'elbow' at"):
+        problem.with_x_init(x)
+    x[1] -= 0.2
+    assert np.array_equal(problem.with_x_init(x).initial_state(), x)
+
+
+def test_horizon_size_is_bounded_before_anything_is_built():
+    from fatigue_pin.core.errors import ParameterError
+    from fatigue_pin.ocp.task import MAX_INTERVALS, check_horizon
+
+    task = Task(1.0, 10)
+    assert check_horizon(task, MAX_INTERVALS // 10) == MAX_INTERVALS // 10
+    for bad, match in ((MAX_INTERVALS // 10 + 1, "expected at most 1000000 in one OCP"), (10**20, "shooting intervals"),
+                       (0, "expected an integer number of cycles >= 1"), (2.0, "expected an integer"), (True, "expected an integer")):
+        with pytest.raises(ParameterError, match=match):
+            check_horizon(task, bad)
+    with pytest.raises(TaskError, match=r"intervals_per_cycle = 1000001: expected an integer in \[1, 1000000\]"):
+        Task(1.0, MAX_INTERVALS + 1)

@@ -1,4 +1,4 @@
-"""The sweep's dashboard line (fatigue_pin.sweep.jobs._dashboard): its address, or that it is off
+"""The sweep's dashboard line (fatigue_pin.sweep.cluster.dashboard): its address, or that it is off
 and why (Dask's dashboard needs bokeh, the ``dashboard`` extra)."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import importlib.util
 from types import SimpleNamespace
 
-from fatigue_pin.sweep import jobs
+from fatigue_pin.sweep import cluster
 
 
 def _client(services):
@@ -14,16 +14,16 @@ def _client(services):
 
 
 def test_dashboard_address_when_the_scheduler_serves_one():
-    assert jobs._dashboard(_client({"dashboard": 8787})) == "dashboard: http://127.0.0.1:8787/status"
+    assert cluster.dashboard(_client({"dashboard": 8787})) == "dashboard: http://127.0.0.1:8787/status"
 
 
 def test_dashboard_off_says_it_needs_bokeh(monkeypatch):
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "bokeh" else real(name, *a))
-    line = jobs._dashboard(_client({}))
+    line = cluster.dashboard(_client({}))
     assert line.startswith("dashboard: off") and "bokeh" in line and "fatigue_pin[dashboard]" in line
 
 
 def test_dashboard_off_with_bokeh_installed(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: object())
-    assert jobs._dashboard(_client({})) == "dashboard: off (the scheduler serves none)"
+    assert cluster.dashboard(_client({})) == "dashboard: off (the scheduler serves none)"

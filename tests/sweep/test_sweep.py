@@ -21,17 +21,10 @@ from conftest import small_curl
 from fatigue_pin.cli.main import main
 from fatigue_pin.io.results import read_run
 from fatigue_pin.io.study import Study
-from fatigue_pin.sweep.jobs import (
-    SUMMARY_COLUMNS,
-    Sweep,
-    SweepError,
-    partial_path,
-    read_job_file,
-    read_summary,
-    run_sweep,
-    sweep_command,
-    write_summary,
-)
+from fatigue_pin.sweep.jobs import partial_path, read_job_file
+from fatigue_pin.sweep.plan import Sweep, SweepError
+from fatigue_pin.sweep.runner import run_sweep, sweep_command
+from fatigue_pin.sweep.summary import SUMMARY_COLUMNS, read_summary, write_summary
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
@@ -356,7 +349,7 @@ def test_local_cluster_listens_on_127_0_0_1_only():
     import psutil
     from distributed import Client
 
-    from fatigue_pin.sweep.jobs import local_cluster
+    from fatigue_pin.sweep.cluster import local_cluster
 
     with local_cluster(2) as cluster, Client(cluster) as client:
         assert len(client.scheduler_info()["workers"]) == 2
@@ -419,7 +412,7 @@ base = "base.toml"
 
 def test_slurm_job_script_carries_the_request():
     pytest.importorskip("dask_jobqueue")
-    from fatigue_pin.sweep.jobs import slurm_cluster
+    from fatigue_pin.sweep.cluster import slurm_cluster
 
     cluster = slurm_cluster(queue="short", walltime="00:30:00", cores=4, memory="8GB", host="127.0.0.1")
     try:
@@ -436,7 +429,7 @@ def test_slurm_job_script_carries_the_request():
 
 
 def test_slurm_options_reach_the_cluster(tmp_path, monkeypatch):
-    import fatigue_pin.sweep.jobs as sweep_module
+    import fatigue_pin.sweep.cluster as sweep_module
 
     seen = {}
 

@@ -76,7 +76,7 @@ def _sources() -> list[tuple[str, int | None]]:
         if "base" not in tomllib.loads(path.read_text()):
             out.append((path.name, None))
             continue
-        from fatigue_pin.sweep.jobs import Sweep
+        from fatigue_pin.sweep.plan import Sweep
 
         jobs = Sweep.from_file(path).jobs()
         kinds: dict[str, int] = {}
@@ -94,7 +94,7 @@ def _study(source: tuple[str, int | None]) -> Study:
     name, job = source
     if job is None:
         return Study.from_file(STUDIES / name)
-    from fatigue_pin.sweep.jobs import Sweep
+    from fatigue_pin.sweep.plan import Sweep
 
     return Sweep.from_file(STUDIES / name).jobs()[job].study
 
