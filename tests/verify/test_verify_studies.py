@@ -91,8 +91,15 @@ SOURCES = _sources()
 
 
 def _study(source: tuple[str, int | None]) -> Study:
+    """The study of a source; for a closed-loop study ([plant], [mpc]), the model's study, whose
+    plan the controller solves window after window."""
     name, job = source
     if job is None:
+        data = tomllib.loads((STUDIES / name).read_text())
+        if "mpc" in data or "plant" in data:
+            from fatigue_pin.io.mpc_study import MpcStudy
+
+            return MpcStudy.from_file(STUDIES / name).study
         return Study.from_file(STUDIES / name)
     from fatigue_pin.sweep.plan import Sweep
 
