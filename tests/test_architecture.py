@@ -83,3 +83,20 @@ def test_modules_and_functions_stay_small():
                     long.append(f"{rel}:{node.lineno} {node.name}: {n} lines (at most {MAX_FUNCTION_LINES}, "
                                 f"or a docstring that says '{LONG_FUNCTION_NOTE} ...')")
     assert long == [], "\n".join(long)
+
+
+def test_the_architecture_page_names_every_module():
+    """docs/architecture.md's tree lists every module of every subpackage, under its subpackage."""
+    text = (PACKAGE.parent / "docs" / "architecture.md").read_text()
+    tree = text.split("```", 2)[1]
+    blocks: dict[str, str] = {}
+    current = None
+    for line in tree.splitlines():
+        head = line.replace("├──", "").replace("└──", "").strip().split("/")[0]
+        if ("├──" in line or "└──" in line) and head in LAYERS:
+            current = head
+        if current is not None:
+            blocks[current] = blocks.get(current, "") + line + "\n"
+    missing = [f"{layer}/{p.name}" for layer in LAYERS for p in sorted((PACKAGE / layer).glob("*.py"))
+               if p.name != "__init__.py" and p.name not in blocks.get(layer, "")]
+    assert missing == [], f"modules missing from docs/architecture.md: {missing}"
