@@ -21,6 +21,8 @@ error message.
 
 from __future__ import annotations
 
+from typing import Iterable
+
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -153,6 +155,28 @@ def check_urdf_text(path: Path) -> None:
         _check_link(path, link)
     for joint in joints:
         _check_joint(path, joint, names)
+
+
+def mimic_joints(path: Path) -> dict[str, str]:
+    """The joints of the URDF at ``path`` that mimic another (``<mimic joint=...>``): name -> the
+    joint it follows."""
+    root = ET.parse(path).getroot()
+    return {j.get("name"): j.find("mimic").get("joint") for j in root.findall("joint") if j.find("mimic") is not None}
+
+
+def check_mimic_joints(path: Path, locked: Iterable[str]) -> None:
+    """Refuse a URDF with a ``<mimic>`` joint that is not locked: a mimic joint is driven by
+    another joint, not by an actuator of its own, and fatigue_pin gives every joint a plus and a
+    minus actuator half; loading it as an independent joint would be a different robot.
+
+    Raises:
+        ModelError: naming the joint, the joint it follows, and the fix (lock it).
+    """
+    locked = set(locked)
+    for joint, leader in mimic_joints(path).items():
+        if joint not in locked:
+            raise ModelError(f"{path.name}: joint {joint!r} mimics {leader!r} (<mimic>); fatigue_pin actuates every joint on its "
+                             f"own: lock it, [model] locked_joints = {{ {joint} = <position> }}")
 
 
 def quiet_stderr():

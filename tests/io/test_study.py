@@ -166,9 +166,11 @@ def test_model_locked_joints_key_reduces_the_model():
     study = Study.from_file(path)
     assert study.model().nv == 7
     assert Study.from_toml(study.to_toml()).data["model"]["locked_joints"] == study.data["model"]["locked_joints"]
-    bad = study.replace({"model.locked_joints": {"panda_finger_joint9": 0.0}})
+    bad = study.replace({"model.locked_joints": {"panda_finger_joint2": 0.0, "panda_finger_joint9": 0.0}})
     with pytest.raises(ModelError, match="joint 'panda_finger_joint9' is not in panda.urdf"):
         bad.model()
+
+
 def test_a_study_read_from_a_pipe(tmp_path):
     """``fatigue-pin run /dev/stdin`` (a pipe, not a regular file) reads the study; a pipe that
     carries no TOML gets the usual one-line error."""

@@ -23,7 +23,8 @@ ROBOTS = {"arm26": ("dumbbell", "forearm", "humerus"), "ur5": ("tool0", "ee_link
 
 @pytest.fixture(scope="module", params=sorted(ROBOTS))
 def robot(request):
-    return request.param, resolve_model(request.param)
+    locked = {"panda_finger_joint2": 0.0} if request.param == "panda" else None  # it mimics finger 1
+    return request.param, resolve_model(request.param, locked_joints=locked)
 
 
 def _random_states(model, n, seed=0):

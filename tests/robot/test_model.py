@@ -111,12 +111,14 @@ def test_locked_joints_leave_the_model_and_keep_the_dynamics():
 
     from fatigue_pin.robot.model import resolve_model
 
-    full = resolve_model("panda")
+    from fatigue_pin.robot.model import example_robot_urdf
+
+    model = pin.buildModelFromUrdf(str(example_robot_urdf("panda")))  # the full model, fingers free
     locked = resolve_model("panda", locked_joints=PANDA_FINGERS)
-    assert (full.nv, locked.nv) == (9, 7)
-    assert locked.joint_names == full.joint_names[:7]
+    assert (model.nv, locked.nv) == (9, 7)
+    assert locked.joint_names == tuple(model.names[1:8])
     assert dict(locked.locked_joints) == PANDA_FINGERS
-    model, data = full.pin_model, full.pin_model.createData()
+    data = model.createData()
     rng = np.random.default_rng(0)
     for _ in range(3):
         q = rng.uniform(locked.q_lower, locked.q_upper)
@@ -135,10 +137,31 @@ def test_locked_joints_reject_unknown_names_and_values_outside_the_limits(locked
     from fatigue_pin.robot.model import resolve_model
 
     with pytest.raises(ModelError, match=message) as info:
-        resolve_model("panda", locked_joints=locked)
+        resolve_model("panda", locked_joints={**locked, "panda_finger_joint2": 0.0})  # finger 2 mimics finger 1
     assert "\n" not in str(info.value)
 
 
 def test_locking_every_joint_is_refused(arm26):
     with pytest.raises(ModelError, match="locks every joint"):
         load_model(None, locked_joints={"shoulder": 0.0, "elbow": 0.5})
+
+
+def test_a_mimic_joint_must_be_locked(tmp_path):
+    """The Panda's second finger follows the first (<mimic>): not an actuated joint of its own, so
+    the model is refused until it is locked, with one line that says how."""
+    from fatigue_pin.core.errors import ModelError
+    from fatigue_pin.robot.model import resolve_model
+
+    with pytest.raises(ModelError, match=r"joint 'panda_finger_joint2' mimics 'panda_finger_joint1' \(<mimic>\).*locked_joints"):
+        resolve_model("panda")
+    model = resolve_model("panda", locked_joints={"panda_finger_joint2": 0.0})
+    assert "panda_finger_joint2" not in model.joint_names and "panda_finger_joint1" in model.joint_names
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text("""<robot name="two"><link name="base"/><link name="a"><inertial><mass value="1"/><origin xyz="0 0 0"/>
+<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<link name="b"><inertial><mass value="1"/><origin xyz="0 0 0"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
+<joint name="j2" type="revolute"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="10" velocity="1"/>
+<mimic joint="j1" multiplier="1" offset="0"/></joint></robot>""")
+    with pytest.raises(ModelError, match="joint 'j2' mimics 'j1'"):
+        resolve_model(str(urdf))
