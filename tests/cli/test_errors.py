@@ -290,7 +290,7 @@ CASES: list[Case] = [
          lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('ixx="0.01481"', 'ixx="-0.01481"'))]),
     Case("urdf-lower-above-upper", URDF, "a lower limit above the upper limit", r"joint 'elbow' has lower limit 2 above its upper limit 1",
          lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793"', 'lower="2" upper="1"'))]),
-    Case("urdf-mimic-joint", URDF, "a joint that mimics another (<mimic>), not locked", r"joint 'elbow' mimics 'shoulder' \(<mimic>\).*locked_joints",
+    Case("urdf-mimic-joint", URDF, "a joint that mimics another (a mimic tag), not locked", r"joint 'elbow' mimics 'shoulder' \(<mimic>\).*locked_joints",
          lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('lower="0.0" upper="3.141592653589793" effort="50.0" velocity="31.41592653589793"/>',
                                                                  'lower="0.0" upper="3.141592653589793" effort="50.0" velocity="31.41592653589793"/><mimic joint="shoulder"/>'))]),
     Case("urdf-nan-limit", URDF, "a NaN limit", r"joint \[elbow\]: <limit upper='nan'>: expected a finite number",
