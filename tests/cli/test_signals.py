@@ -17,11 +17,14 @@ import pytest
 from conftest import make_run, small_curl
 from fatigue_pin.io.results import read_run, write_run
 
-ROOT = Path(__file__).resolve().parents[2]
 
 
 def _env() -> dict[str, str]:
-    return {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "OMP_NUM_THREADS": "1"}
+    """The child imports the fatigue_pin this process imported (installed, or a tree on PYTHONPATH)."""
+    import fatigue_pin
+
+    home = str(Path(fatigue_pin.__file__).resolve().parents[1])
+    return {**os.environ, "PYTHONPATH": home + os.pathsep + os.environ.get("PYTHONPATH", ""), "OMP_NUM_THREADS": "1"}
 
 
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
