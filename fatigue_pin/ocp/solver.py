@@ -35,7 +35,7 @@ from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, 
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.core.signals import watch
 from fatigue_pin.core.streams import captured
-from fatigue_pin.ocp.compiled import cached_build, compile_shared, verify_entry
+from fatigue_pin.ocp.compiled import BuildOptions, cache_folder, cached_build, compile_shared, host_key, verify_entry
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
@@ -174,8 +174,6 @@ class SolverOptions:
 
     def build_options(self):
         """Compiler, flags and cache folder for :mod:`fatigue_pin.ocp.compiled`."""
-        from fatigue_pin.ocp.compiled import BuildOptions
-
         return BuildOptions(compiler=self.compiler, flags=tuple(self.compiler_flags), cache_dir=self.resolved_cache_dir(),
                             jobs=self.compile_jobs)
 
@@ -205,8 +203,6 @@ class SolverOptions:
 
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-code cache (:func:`fatigue_pin.ocp.compiled.cache_folder`)."""
-        from fatigue_pin.ocp.compiled import cache_folder
-
         return cache_folder(self.cache_dir)
 
 
@@ -324,8 +320,6 @@ def _host_key(options: SolverOptions) -> bytes:
     """What the cache key adds for code tuned to this CPU (``-march=native``): its model and
     instruction-set flags (:func:`fatigue_pin.ocp.compiled.host_key`), so a cache shared between
     machines never hands one machine's library to another."""
-    from fatigue_pin.ocp.compiled import host_key
-
     return host_key(options.compiler_flags)
 
 

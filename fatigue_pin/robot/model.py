@@ -17,7 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from fatigue_pin.robot.dynamics import casadi_dynamics
-from fatigue_pin.robot.urdf import check_mimic_joints, check_urdf_text, quiet_stderr
+from fatigue_pin.robot.urdf import check_urdf_text, quiet_stderr
 from fatigue_pin.core.errors import DimensionError, ModelError
 from fatigue_pin.core.settings import check_fields, setting
 
@@ -397,8 +397,7 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
             a joint has no effort limit, or a joint moves no mass (zero mass and inertia).
     """
     path = _urdf_path(urdf)
-    check_urdf_text(path)
-    check_mimic_joints(path, locked_joints or {})
+    check_urdf_text(path, locked_joints or {})
     with quiet_stderr() as parser_lines:
         try:
             model = pin.buildModelFromUrdf(str(path))

@@ -131,9 +131,12 @@ def _check_link(path: Path, link: ET.Element) -> None:
                                  "expected moments of inertia >= 0 (kg m^2) in its <inertia>")
 
 
-def check_urdf_text(path: Path) -> None:
+def check_urdf_text(path: Path, locked: Iterable[str] = ()) -> None:
     """Refuse, with one line naming the element and the value, a URDF that the URDF parser would
-    reject or that fatigue_pin cannot model (see the module docstring).
+    reject or that fatigue_pin cannot model (see the module docstring), including a ``<mimic>``
+    joint that is not among the ``locked`` joints: a mimic joint is driven by another joint, not by
+    an actuator of its own, and fatigue_pin gives every joint a plus and a minus actuator half, so
+    loading it as an independent joint would be a different robot.
 
     Raises:
         ModelError: the first problem found.
@@ -155,28 +158,16 @@ def check_urdf_text(path: Path) -> None:
         _check_link(path, link)
     for joint in joints:
         _check_joint(path, joint, names)
+    _check_mimic(path, joints, set(locked))
 
 
-def mimic_joints(path: Path) -> dict[str, str]:
-    """The joints of the URDF at ``path`` that mimic another (``<mimic joint=...>``): name -> the
-    joint it follows."""
-    root = ET.parse(path).getroot()
-    return {j.get("name"): j.find("mimic").get("joint") for j in root.findall("joint") if j.find("mimic") is not None}
-
-
-def check_mimic_joints(path: Path, locked: Iterable[str]) -> None:
-    """Refuse a URDF with a ``<mimic>`` joint that is not locked: a mimic joint is driven by
-    another joint, not by an actuator of its own, and fatigue_pin gives every joint a plus and a
-    minus actuator half; loading it as an independent joint would be a different robot.
-
-    Raises:
-        ModelError: naming the joint, the joint it follows, and the fix (lock it).
-    """
-    locked = set(locked)
-    for joint, leader in mimic_joints(path).items():
-        if joint not in locked:
-            raise ModelError(f"{path.name}: joint {joint!r} mimics {leader!r} (<mimic>); fatigue_pin actuates every joint on its "
-                             f"own: lock it, [model] locked_joints = {{ {joint} = <position> }}")
+def _check_mimic(path: Path, joints: list[ET.Element], locked: set[str]) -> None:
+    """Refuse the first ``<mimic>`` joint that is not locked, naming the joint it follows and the fix."""
+    for joint in joints:
+        mimic = joint.find("mimic")
+        if mimic is not None and joint.get("name") not in locked:
+            raise ModelError(f"{path.name}: joint {joint.get('name')!r} mimics {mimic.get('joint')!r} (<mimic>); fatigue_pin "
+                             f"actuates every joint on its own: lock it, [model] locked_joints = {{ {joint.get('name')} = <position> }}")
 
 
 def quiet_stderr():
