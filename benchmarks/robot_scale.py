@@ -56,6 +56,11 @@ CONFIGS: dict[str, dict] = {
     "substeps2": {"transcription.substeps": 2},
     "one-step-substeps2": {"solver.hessian": "one-step", "transcription.substeps": 2},
     "warm": {"horizon.warm_start": True},
+    "analytical": {"solver.dynamics_jacobian": "analytical"},
+    "euler-step": {"solver.hessian": "euler-step"},
+    "analytical-one-step": {"solver.dynamics_jacobian": "analytical", "solver.hessian": "one-step"},
+    "analytical-euler-step": {"solver.dynamics_jacobian": "analytical", "solver.hessian": "euler-step"},
+    "blas2": {"solver.blas_threads": 2},
     "one-step-warm": {"solver.hessian": "one-step", "horizon.warm_start": True},
 }
 

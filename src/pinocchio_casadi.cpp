@@ -33,6 +33,13 @@ namespace
     return fatigue_pin::serialized_sx_dynamics(model);
   }
 
+  std::string aba_derivatives_from_string(const std::string & model_text)
+  {
+    pinocchio::Model model;
+    model.loadFromString(model_text);
+    return fatigue_pin::serialized_sx_aba_derivatives(model);
+  }
+
   std::tuple<std::string, std::string, std::string>
   frame_kinematics_from_string(const std::string & model_text, std::size_t frame_id)
   {
@@ -52,6 +59,11 @@ NB_MODULE(_pinocchio_casadi, m)
     "Build (aba, rnea) for a model given as `pinocchio.Model.saveToString()`.\n\n"
     "Returns two strings for `casadi.Function.deserialize`: aba(q, v, tau) -> ddq and\n"
     "rnea(q, v, a) -> tau.");
+  m.def(
+    "aba_derivatives_from_string", &aba_derivatives_from_string, nb::arg("model_text"),
+    "Analytical derivatives of ABA for a model given as `pinocchio.Model.saveToString()`.\n\n"
+    "Returns a string for `casadi.Function.deserialize`: aba_derivatives(q, v, tau) ->\n"
+    "(ddq, ddq_dq, ddq_dv, Minv).");
   m.def(
     "frame_kinematics_from_string", &frame_kinematics_from_string, nb::arg("model_text"),
     nb::arg("frame_id"),

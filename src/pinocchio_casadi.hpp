@@ -18,6 +18,12 @@ namespace fatigue_pin
   /// serialized casadi Functions (aba(q, v, tau) -> ddq, rnea(q, v, a) -> tau).
   std::pair<std::string, std::string> serialized_sx_dynamics(const pinocchio::Model & model);
 
+  /// Runs pinocchio::computeABADerivatives on casadi::SX symbols over `model` and returns the
+  /// serialized casadi Function aba_derivatives(q, v, tau) -> (ddq, ddq_dq, ddq_dv, Minv), the
+  /// accelerations and their analytical partial derivatives (Minv = d ddq / d tau, symmetric)
+  /// (pinocchio_casadi_derivatives.cpp).
+  std::string serialized_sx_aba_derivatives(const pinocchio::Model & model);
+
   /// Runs pinocchio::forwardKinematics, updateFramePlacement and getFrameVelocity
   /// (LOCAL_WORLD_ALIGNED) on casadi::SX symbols for frame `frame_id` of `model` and returns the
   /// serialized casadi Functions position(q) -> p (3), rotation(q) -> R (3x3) and

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Mapping
 import casadi as ca
 import numpy as np
 
-from fatigue_pin.ocp.blocks import BlockPair, block_functions
+from fatigue_pin.ocp.blocks import JAC_BLOCK, BlockPair, block_functions
 from fatigue_pin.ocp.costs import IntervalVariables
 from fatigue_pin.ocp.problem import Problem
 
@@ -67,6 +67,16 @@ class IntervalFunctions:
         self.F_rb = ca.Function("F_rb", [ys, taus], [rk4(self.f_rb, ys, (taus,), h, substeps)], ["y", "tau"], ["y_next"])
         # one RK4 step over the whole interval: the rigid body's approximate Hessian of ``one-step``
         self.F_rb_one_step = ca.Function("F_rb_one_step", [ys, taus], [rk4(self.f_rb, ys, (taus,), task.dt, 1)], ["y", "tau"], ["y_next"])
+        # one explicit Euler step: the rigid body's approximate Hessian of ``euler-step``
+        self.F_rb_euler_step = ca.Function("F_rb_euler_step", [ys, taus], [ys + task.dt * self.f_rb(ys, taus)], ["y", "tau"], ["y_next"])
+        derivatives = model.aba_derivatives()
+        #: ``(y, tau) -> (ydot, ddq_dq, ddq_dv, Minv)`` from Pinocchio's analytical derivatives
+        #: of ABA (SX), or None (nq != nv)
+        self.f_rb_derivatives = None if derivatives is None else ca.Function(
+            "f_rb_derivatives", [y, tau], [ca.vertcat(y[nq:], derivatives(y[:nq], y[nq:], tau)[0]), *derivatives(y[:nq], y[nq:], tau)[1:]],
+            ["y", "tau"], ["ydot", "ddq_dq", "ddq_dv", "Minv"])
+        self._h = h
+        self.substeps = substeps
 
         m = ca.SX.sym("m", actuators.n_states)
         u = ca.SX.sym("u", nu)
@@ -92,23 +102,61 @@ class IntervalFunctions:
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
         self.terms = ca.Function("terms", [x, u, u_prev], [terms], ["x", "u", "u_prev"], ["terms"])
 
+    def analytical_rb_jacobian(self) -> ca.Function | None:
+        """``jblk_F_rb(w) -> (y_next, J)`` with w = (y, tau) (18 rows for nv = 6): the RK4 of
+        :attr:`F_rb` and its Jacobian by forward sensitivities, from Pinocchio's analytical
+        derivatives of ABA (:attr:`f_rb_derivatives`) instead of automatic differentiation of
+        ABA. Each stage k = f(y_s, tau) adds ``dk/dw = A dy_s/dw + [0 | B]`` with
+        A = [[0, I], [ddq_dq, ddq_dv]] and B = [0; Minv]; the stages combine as the RK4 step
+        does. The same values as ``ca.jacobian`` of :attr:`F_rb` to rounding. None without
+        analytical derivatives."""
+        if self.f_rb_derivatives is None:
+            return None
+        nq, nv = self.layout.nq, self.layout.nv
+        ny = nq + nv
+        w = ca.MX.sym("w", ny + nv)
+        y, tau = w[:ny], w[ny:]
+        S = ca.MX(ca.DM.eye(ny + nv)[:ny, :])  # dy/dw
+        control = ca.MX(nv, ny)  # zeros beside Minv: d(ddq)/dtau acts on the tau columns only
+
+        def stage(ys: ca.MX, Ss: ca.MX) -> tuple[ca.MX, ca.MX]:
+            ydot, dq, dv, minv = self.f_rb_derivatives(ys, tau)
+            return ydot, ca.vertcat(Ss[nq:, :], ca.mtimes(dq, Ss[:nq, :]) + ca.mtimes(dv, Ss[nq:, :]) + ca.horzcat(control, minv))
+
+        h = self._h
+        for _ in range(self.substeps):
+            k1, d1 = stage(y, S)
+            k2, d2 = stage(y + h / 2 * k1, S + h / 2 * d1)
+            k3, d3 = stage(y + h / 2 * k2, S + h / 2 * d2)
+            k4, d4 = stage(y + h * k3, S + h * d3)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+        return ca.Function(JAC_BLOCK + "F_rb", [w], [y, S], ["w"], ["y", "J"])
+
     def library_functions(self) -> list[ca.Function]:
         """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
         return [self.F_rb, self.F_fatigue, self.coupling, self.terms]
 
-    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], hessian: str = "exact") -> None:
+    def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], hessian: str = "exact", jacobian: str = "automatic") -> None:
         """Build the derivative blocks (:func:`fatigue_pin.ocp.blocks.block_functions`) of the
         library functions named in ``diffs``, for the inputs given there (those that depend on
         the decision variables), from the original functions. ``hessian``
         (:attr:`SolverOptions.hessian <fatigue_pin.ocp.solver.SolverOptions.hessian>`) says what
-        the rigid body's Hessian block holds: ``exact``, nothing (``gauss-newton``) or the
-        second derivatives of one RK4 step over the interval (``one-step``)."""
+        the rigid body's Hessian block holds: ``exact``, nothing (``gauss-newton``), or the
+        second derivatives of one RK4 step (``one-step``) or one explicit Euler step
+        (``euler-step``) over the interval. ``jacobian``
+        (:attr:`SolverOptions.dynamics_jacobian <fatigue_pin.ocp.solver.SolverOptions.dynamics_jacobian>`):
+        ``analytical`` takes the rigid body's Jacobian block from :meth:`analytical_rb_jacobian`
+        where the model has one and both y and tau are differentiated."""
+        approximations = {"one-step": self.F_rb_one_step, "euler-step": self.F_rb_euler_step}
         for f in self.library_functions():
             if f.name() not in diffs:
                 continue
             rb = f.name() == "F_rb"
-            self.blocks[f.name()] = block_functions(f, diffs[f.name()], hessian=not (rb and hessian == "gauss-newton"),
-                                                    hessian_of=self.F_rb_one_step if rb and hessian == "one-step" else None)
+            pair = block_functions(f, diffs[f.name()], hessian=not (rb and hessian == "gauss-newton"),
+                                   hessian_of=approximations.get(hessian) if rb else None)
+            analytical = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and pair.diff == (0, 1) else None
+            self.blocks[f.name()] = pair if analytical is None else BlockPair(pair.diff, analytical, pair.hess)
         self.blocks_hessian = hessian
 
     def block_functions(self) -> list[ca.Function]:

@@ -40,7 +40,9 @@ from fatigue_pin.ocp.compiled import BuildOptions, cache_folder, cached_build, c
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
 #: Lagrangian Hessians of :attr:`SolverOptions.hessian`.
-HESSIANS = ("exact", "gauss-newton", "one-step")
+HESSIANS = ("exact", "gauss-newton", "one-step", "euler-step")
+#: How the rigid body's Jacobian block is taken (:attr:`SolverOptions.dynamics_jacobian`).
+DYNAMICS_JACOBIANS = ("analytical", "automatic")
 #: IPOPT options of a warm-started solve (:meth:`NlpSolver.solve` with ``warm_start``): start
 #: from the given primal and dual point, pushed 1e-3 off the bounds, with barrier 1e-2 (on the small
 #: curl: 30 % fewer iterations than cold windows; 1e-4 and 1e-6 gave 10-20 %).
@@ -142,7 +144,23 @@ class SolverOptions:
             blocks, docs/ocp.md "Robot-scale speed"). ``one-step``: the rigid body's second
             derivatives from one RK4 step over each interval instead of ``substeps`` steps (an
             approximation of the same flow's curvature; the constraints, their Jacobian and so
-            the optimum stay those of the transcription).
+            the optimum stay those of the transcription). ``euler-step``: the same from one
+            explicit Euler step, ``dt`` times the Hessian of ABA (a tenth of the cost of
+            ``one-step``'s on the UR5, docs/ocp.md "Robot-scale speed").
+        dynamics_jacobian: how the Jacobian of the rigid body's RK4 (the derivative block
+            ``jblk_F_rb``) is taken: ``analytical``: forward sensitivities through the RK4 stages
+            from Pinocchio's analytical derivatives of ABA (``computeABADerivatives`` on SX;
+            :meth:`IntervalFunctions.analytical_rb_jacobian
+            <fatigue_pin.ocp.intervals.IntervalFunctions.analytical_rb_jacobian>`); ``automatic``:
+            CasADi's automatic differentiation through ABA. The same values to rounding. Models
+            with nq != nv (continuous joints) always use ``automatic``.
+        blas_threads: threads of the BLAS under IPOPT's linear solver (the OpenBLAS that ships
+            with CasADi, :func:`limit_blas_threads`); ``None`` leaves it as it is (the
+            ``OPENBLAS_NUM_THREADS`` environment variable, else every core). 1 (default): the
+            KKT systems of these problems are too small for threaded BLAS, whose idle threads
+            spin against the ``thread`` maps of the interval functions: the UR5 window of
+            docs/ocp.md "Robot-scale speed" took 130 against 177 ms per iteration, with a third of
+            its CPU time spent in the kernel before.
     """
 
     linear_solver: str = setting("mumps", "an IPOPT linear solver name (e.g. 'mumps')", is_str)
@@ -162,7 +180,9 @@ class SolverOptions:
     compile_jobs: int | None = setting(None, "a number of compiler processes >= 1", lambda v: is_int(v) and v >= 1)
     accept_acceptable: bool = setting(False, "true or false", is_bool)
     derivative_blocks: bool | None = setting(None, "true or false (none: in library mode)", is_bool)
-    hessian: str = setting("exact", "'exact', 'one-step' or 'gauss-newton'", lambda v: v in HESSIANS)
+    hessian: str = setting("exact", "'exact', 'one-step', 'euler-step' or 'gauss-newton'", lambda v: v in HESSIANS)
+    dynamics_jacobian: str = setting("automatic", "'analytical' or 'automatic'", lambda v: v in DYNAMICS_JACOBIANS)
+    blas_threads: int | None = setting(1, "a number of threads >= 1", lambda v: is_int(v) and v >= 1)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -204,6 +224,30 @@ class SolverOptions:
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-code cache (:func:`fatigue_pin.ocp.compiled.cache_folder`)."""
         return cache_folder(self.cache_dir)
+
+
+def limit_blas_threads(threads: int) -> bool:
+    """Set the thread count of CasADi's OpenBLAS (the BLAS of its MUMPS) to ``threads``.
+
+    The library is loaded with IPOPT's plugin, so call this after ``nlpsol``. OpenBLAS keeps one
+    count per process: the last call wins. Returns False (and changes nothing) where CasADi
+    ships no OpenBLAS of its own (other platforms or builds).
+    """
+    import ctypes
+
+    # the copy IPOPT's MUMPS loaded (the wheel holds the same library under three names, each a
+    # separate copy once loaded): from the process's memory map where there is one
+    maps = Path("/proc/self/maps")
+    loaded = sorted({line.split()[-1] for line in maps.read_text().splitlines() if "libcasadi-tp-openblas" in line}) if maps.exists() else []
+    folder = Path(ca.__file__).parent
+    for path in loaded or sorted(folder.glob("libcasadi-tp-openblas*")):
+        try:
+            lib = ctypes.CDLL(str(path))
+            lib.openblas_set_num_threads(ctypes.c_int(int(threads)))
+        except (OSError, AttributeError):
+            continue
+        return True
+    return False
 
 
 def _ipopt_refusal(name: str, value: Any, said: list[str], exc: Exception) -> ParameterError:
@@ -414,6 +458,8 @@ class NlpSolver:
             if warm_start:
                 opts["ipopt"].update(WARM_START_OPTIONS)
             self._solvers[key] = ca.nlpsol(self._name, "ipopt", self._source, {**opts, **self.derivatives})
+            if self.options.blas_threads is not None:
+                limit_blas_threads(self.options.blas_threads)
         return self._solvers[key]
 
     def _compiled(self, solver: ca.Function, name: str) -> str:

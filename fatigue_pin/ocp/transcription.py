@@ -158,7 +158,8 @@ class Ocp:
             library_compile_s = self.functions.library.compile_time_s
         opti = self._formulate()
         if self._uses_blocks and self.functions.library is None and not self.functions.blocks:  # uncompiled
-            self.functions.build_blocks(self._differentiated_inputs(opti.x), self.solver_options.hessian)
+            self.functions.build_blocks(self._differentiated_inputs(opti.x), self.solver_options.hessian,
+                                             self.solver_options.dynamics_jacobian)
         blocks = self._block_derivatives if self._uses_blocks else None
         self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
                              label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks,
@@ -214,7 +215,8 @@ class Ocp:
             nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
             opts: dict = {"print_time": False}
             if self._uses_blocks:
-                self.functions.build_blocks(self._differentiated_inputs(x), self.solver_options.hessian)
+                self.functions.build_blocks(self._differentiated_inputs(x), self.solver_options.hessian,
+                                             self.solver_options.dynamics_jacobian)
                 opts.update(self._block_derivatives(nlp) or {})
                 if not opts.keys() & {"jac_g", "hess_lag"}:
                     self.functions.blocks = {}  # not usable for this problem: CasADi's own derivatives

@@ -96,6 +96,35 @@ def aligned_model(model: pin.Model) -> pin.Model:
     return out
 
 
+def casadi_aba_derivatives(model: pin.Model) -> ca.Function | None:
+    """Pinocchio's analytical derivatives of ABA (``computeABADerivatives``) on SX.
+
+    Returns ``aba_derivatives(q[nq], v[nv], tau[nv]) -> (ddq[nv], ddq_dq[nv x nv],
+    ddq_dv[nv x nv], Minv[nv x nv])``: the accelerations (rad/s^2 or m/s^2), their partial
+    derivatives in q (1/s^2) and v (1/s), and d ddq / d tau = M(q)^-1 (symmetric), or None when
+    the model has joints whose configuration is not their tangent (nq != nv: continuous joints),
+    where d/dq is not the derivative in q.
+
+    Raises:
+        ModelError: as :func:`casadi_dynamics`.
+    """
+    model = aligned_model(model)
+    if model.nq != model.nv:
+        return None
+    try:
+        import pinocchio.casadi as cpin
+    except ImportError:
+        ext = _extension()
+        return ca.Function.deserialize(ext.aba_derivatives_from_string(model.saveToString()))
+    cmodel = cpin.Model(model)
+    cdata = cmodel.createData()
+    q, v, tau = (ca.SX.sym(n, model.nv) for n in ("q", "v", "tau"))
+    cpin.computeABADerivatives(cmodel, cdata, q, v, tau)
+    minv = ca.triu(cdata.Minv) + ca.triu(cdata.Minv, False).T
+    return ca.Function("aba_derivatives", [q, v, tau], [cdata.ddq, cdata.ddq_dq, cdata.ddq_dv, minv], ["q", "v", "tau"],
+                       ["ddq", "ddq_dq", "ddq_dv", "Minv"])
+
+
 def _pinocchio_casadi_dynamics(cpin, model: pin.Model) -> tuple[ca.Function, ca.Function]:
     """Same functions through Pinocchio's own Python bindings on casadi (conda-forge builds)."""
     cmodel = cpin.Model(model)
@@ -117,6 +146,13 @@ def _extension_dynamics(model: pin.Model) -> tuple[ca.Function, ca.Function]:
     The model crosses to C++ as Pinocchio's text serialization, so everything in it (inertias,
     placements, joint types, gravity) is reproduced exactly; the functions come back serialized.
     """
+    ext = _extension()
+    aba_text, rnea_text = ext.dynamics_from_string(model.saveToString())
+    return ca.Function.deserialize(aba_text), ca.Function.deserialize(rnea_text)
+
+
+def _extension():
+    """The compiled extension, checked against the running casadi and Pinocchio."""
     # casadi and pinocchio are imported above this point, which also loads libcasadi and
     # libboost_serialization for the extension if its RPATH cannot find them.
     try:
@@ -136,5 +172,4 @@ def _extension_dynamics(model: pin.Model) -> tuple[ca.Function, ca.Function]:
                 f"fatigue_pin._pinocchio_casadi was built against {name} {built} but {name} "
                 f"{running} is imported; reinstall fatigue_pin with pip to rebuild it"
             )
-    aba_text, rnea_text = ext.dynamics_from_string(model.saveToString())
-    return ca.Function.deserialize(aba_text), ca.Function.deserialize(rnea_text)
+    return ext

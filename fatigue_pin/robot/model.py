@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from fatigue_pin.robot.dynamics import casadi_dynamics
+from fatigue_pin.robot.dynamics import casadi_aba_derivatives, casadi_dynamics
 from fatigue_pin.robot.urdf import check_urdf_text, quiet_stderr
 from fatigue_pin.core.errors import DimensionError, ModelError
 from fatigue_pin.core.settings import check_fields, setting
@@ -161,6 +161,15 @@ class RobotModel:
     payload: Payload | None = None
     locked_joints: tuple[tuple[str, float], ...] = ()
     _frames: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _derivatives: list = field(default_factory=list, init=False, repr=False, compare=False)
+
+    def aba_derivatives(self) -> ca.Function | None:
+        """Pinocchio's analytical derivatives of ABA on SX (built once, then cached):
+        ``(q, v, tau) -> (ddq, ddq_dq, ddq_dv, Minv)``
+        (:func:`~fatigue_pin.robot.dynamics.casadi_aba_derivatives`), or None when nq != nv."""
+        if not self._derivatives:
+            self._derivatives.append(casadi_aba_derivatives(self.pin_model))
+        return self._derivatives[0]
 
     # -- frame kinematics on CasADi symbols (fatigue_pin.robot.kinematics), cached per frame ----------
 

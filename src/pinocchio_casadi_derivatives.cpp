@@ -1,0 +1,48 @@
+// Pinocchio's analytical derivatives of ABA evaluated on casadi::SX (its own translation unit:
+// it compiles in parallel with the others).
+//
+// pinocchio/autodiff/casadi.hpp must come before any other Pinocchio header: it teaches Eigen and
+// Pinocchio how to use casadi::SX as a scalar type.
+#include "pinocchio/autodiff/casadi.hpp"
+
+#include "pinocchio/multibody.hpp"
+#include "pinocchio/algorithm/aba-derivatives.hpp"
+
+#include "pinocchio_casadi.hpp"
+
+namespace fatigue_pin
+{
+  std::string serialized_sx_aba_derivatives(const pinocchio::Model & model)
+  {
+    using SX = ::casadi::SX;
+    using ADModel = pinocchio::ModelTpl<SX>;
+    using ADData = ADModel::Data;
+
+    const ADModel ad_model = model.cast<SX>();
+    ADData ad_data(ad_model);
+
+    const SX q = SX::sym("q", model.nq);
+    const SX v = SX::sym("v", model.nv);
+    const SX tau = SX::sym("tau", model.nv);
+    ADModel::ConfigVectorType q_ad(model.nq);
+    ADModel::TangentVectorType v_ad(model.nv), tau_ad(model.nv);
+    pinocchio::casadi::copy(q, q_ad);
+    pinocchio::casadi::copy(v, v_ad);
+    pinocchio::casadi::copy(tau, tau_ad);
+
+    // ddq and its partial derivatives (Carpentier & Mansard, RSS 2018); Minv = d ddq / d tau.
+    pinocchio::computeABADerivatives(ad_model, ad_data, q_ad, v_ad, tau_ad);
+    // only the upper triangle of Minv is filled
+    ad_data.Minv.template triangularView<Eigen::StrictlyLower>() =
+      ad_data.Minv.transpose().template triangularView<Eigen::StrictlyLower>();
+    SX ddq(model.nv, 1), ddq_dq(model.nv, model.nv), ddq_dv(model.nv, model.nv), minv(model.nv, model.nv);
+    pinocchio::casadi::copy(ad_data.ddq, ddq);
+    pinocchio::casadi::copy(ad_data.ddq_dq, ddq_dq);
+    pinocchio::casadi::copy(ad_data.ddq_dv, ddq_dv);
+    pinocchio::casadi::copy(ad_data.Minv, minv);
+    const ::casadi::Function f(
+      "aba_derivatives", {q, v, tau}, {ddq, ddq_dq, ddq_dv, minv}, {"q", "v", "tau"},
+      {"ddq", "ddq_dq", "ddq_dv", "Minv"});
+    return f.serialize();
+  }
+} // namespace fatigue_pin
