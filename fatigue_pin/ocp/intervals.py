@@ -133,6 +133,11 @@ class IntervalFunctions:
             S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
         return ca.Function(JAC_BLOCK + "F_rb", [w], [y, S], ["w"], ["y", "J"])
 
+    #: library functions that only the transcription's constraints evaluate (no other NLP, such
+    #: as the moving-horizon estimator's, differentiates them): with derivative blocks they are
+    #: compiled without derivative functions
+    blocks_only = ("F_rb",)
+
     def library_functions(self) -> list[ca.Function]:
         """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
         return [self.F_rb, self.F_fatigue, self.coupling, self.terms]

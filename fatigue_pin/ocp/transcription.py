@@ -226,10 +226,16 @@ class Ocp:
         functions = self.functions.library_functions()
         # with the blocks, only the gradients (adj1_) are evaluated of the interval functions
         derivatives = requested_derivatives(solver, [fn.name() for fn in functions])
+        # a function only this NLP evaluates, whose derivatives all come from its blocks, is
+        # compiled without derivative code (the UR5's rigid body: a quarter of the library's C)
+        plain = [fn for fn in functions if fn.name() in self.functions.blocks_only and fn.name() in self.functions.blocks
+                 and not derivatives[fn.name()]]
+        functions = [fn for fn in functions if fn not in plain]
+        derivatives = {fn.name(): derivatives[fn.name()] for fn in functions}
         name = re.sub(r"[^A-Za-z0-9_]", "_", f"{self.model.name}_intervals")
         library = FunctionLibrary.build(functions, name, self.solver_options.build_options(), derivatives=derivatives,
                                         progress=progress, description=f"the {self.model.name} interval functions",
-                                        plain=self.functions.block_functions())
+                                        plain=plain + self.functions.block_functions())
         self.functions.use(library)
 
     def _block_derivatives(self, nlp: Mapping[str, ca.MX]) -> dict[str, ca.Function] | None:

@@ -121,7 +121,7 @@ def test_gauss_newton_hessian_drops_only_the_rigid_body_curvature(arm26):
     assert float(ca.norm_inf(ca.densify(jac_gn - jac_exact))) == 0.0
 
 
-@pytest.mark.parametrize("hessian, intervals", [("gauss-newton", 10), ("one-step", 20)])
+@pytest.mark.parametrize("hessian, intervals", [("gauss-newton", 10), ("one-step", 20), ("euler-step", 20)])
 def test_approximate_hessians_reach_the_exact_hessians_optimum(arm26, hessian, intervals):
     """Same KKT point (solved to tol 1e-9): objective within 1e-6 relative, states within 1e-4.
     (``one-step`` on 20 intervals per cycle: one RK4 step of 0.1 s, the 10-interval grid, is
@@ -168,3 +168,41 @@ def test_gauss_newton_needs_the_blocks(arm26):
         Ocp(study.problem(arm26), 1, study.transcription(), solver)
     with pytest.raises(ParameterError, match="SolverOptions.hessian = 'newton'"):
         dataclasses.replace(study.solver(), hessian="newton")
+
+
+@pytest.mark.parametrize("which", ["arm26", "ur5"])
+def test_analytical_rigid_body_jacobian_equals_automatic_differentiation(arm26, ur5_study, which):
+    """``dynamics_jacobian = "analytical"``: the RK4's Jacobian block from forward sensitivities
+    of Pinocchio's analytical ABA derivatives equals CasADi's automatic Jacobian of the same RK4
+    (values and states), at random points; the block replaces only F_rb's Jacobian."""
+    study = small_curl() if which == "arm26" else ur5_study
+    model = arm26 if which == "arm26" else ur5_study.model()
+    solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, dynamics_jacobian="analytical")
+    ocp = Ocp(study.problem(model), 1, study.transcription(), solver, end_tolerance=0.1)
+    fn = ocp.functions
+    mine = fn.blocks["F_rb"].jac
+    automatic = block_functions(fn.F_rb, (0, 1), hessian=False).jac
+    assert mine.name() == automatic.name() == "jblk_F_rb"
+    rng = np.random.default_rng(5)
+    nw = mine.size1_in(0)
+    for _ in range(5):
+        w = rng.uniform(-1.0, 1.0, nw)
+        (y, J), (y0, J0) = mine(w), automatic(w)
+        assert np.abs(np.asarray(y) - np.asarray(y0)).max() <= 1e-12 * max(1.0, float(ca.norm_inf(y0)))
+        assert np.abs(np.asarray(ca.densify(J)) - np.asarray(ca.densify(J0))).max() <= 1e-11 * max(1.0, float(ca.norm_inf(J0)))
+    assert fn.blocks["F_fatigue"].jac.name() == "jblk_F_fatigue"  # the others stay automatic
+
+
+def test_euler_step_hessian_block_is_dt_times_the_hessian_of_aba(arm26):
+    """``euler-step``: the rigid body's Hessian block is the Hessian of mu' (y + dt f(y, tau))."""
+    study = small_curl(intervals_per_cycle=20)
+    solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, hessian="euler-step")
+    ocp = Ocp(study.problem(arm26), 1, study.transcription(), solver)
+    fn = ocp.functions
+    y, tau, mu = ca.SX.sym("y", 4), ca.SX.sym("tau", 2), ca.SX.sym("mu", 4)
+    w = ca.vertcat(y, tau)
+    ref = ca.Function("h", [w, mu], [ca.hessian(ocp.task.dt * ca.dot(mu, fn.f_rb(y, tau)), w)[0]])
+    rng = np.random.default_rng(6)
+    wv = np.r_[ocp.initial_state()[:4] + 0.1 * rng.normal(size=4), rng.normal(size=2)]
+    mv = rng.normal(size=4)
+    assert np.allclose(np.asarray(ca.densify(fn.blocks["F_rb"].hess(wv, mv))), np.tril(np.asarray(ref(wv, mv))), rtol=1e-10, atol=1e-12)

@@ -142,3 +142,32 @@ def test_missing_extension_is_a_model_error(monkeypatch):
     monkeypatch.delattr(fatigue_pin, "_pinocchio_casadi", raising=False)
     with pytest.raises(ModelError, match="install fatigue_pin with pip"):
         dynamics.casadi_dynamics(pin.buildSampleModelManipulator())
+
+
+def test_aba_derivatives_match_pinocchios_numeric_derivatives(model):
+    """``casadi_aba_derivatives``: ddq, d ddq/dq, d ddq/dv against numeric
+    ``pinocchio.computeABADerivatives``, and Minv against the inverse of CRBA's mass matrix."""
+    rng = np.random.default_rng(11)
+    q, v, tau = _random_states(model, rng)
+    f = dynamics.casadi_aba_derivatives(model)
+    assert f.name_out() == ["ddq", "ddq_dq", "ddq_dv", "Minv"]
+    data = model.createData()
+    for k in range(10):
+        ddq, dq, dv, minv = (np.asarray(o) for o in f(q[:, k], v[:, k], tau[:, k]))
+        pin.computeABADerivatives(model, data, q[:, k], v[:, k], tau[:, k])
+        scale = max(1.0, np.abs(data.ddq_dq).max())
+        _close(ddq.ravel(), _reference_aba(model, q[:, k:k + 1], v[:, k:k + 1], tau[:, k:k + 1]).ravel(), 1e-10)
+        _close(dq, data.ddq_dq, 1e-10 * scale)
+        _close(dv, data.ddq_dv, 1e-10 * scale)
+        M = pin.crba(model, model.createData(), q[:, k])
+        M = np.triu(M) + np.triu(M, 1).T
+        _close(minv, np.linalg.inv(M), 1e-9 * max(1.0, np.abs(minv).max()))
+
+
+def test_no_aba_derivatives_for_joints_whose_configuration_is_not_their_tangent():
+    """A continuous joint (nq = 2, nv = 1): d/dq is not a derivative in q, so None."""
+    model = pin.Model()
+    joint = model.addJoint(0, pin.JointModelRUBZ(), pin.SE3.Identity(), "wheel")
+    model.appendBodyToJoint(joint, pin.Inertia.FromCylinder(1.0, 0.1, 0.1), pin.SE3.Identity())
+    assert model.nq == 2 and model.nv == 1
+    assert dynamics.casadi_aba_derivatives(model) is None
