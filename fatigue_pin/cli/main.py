@@ -208,6 +208,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
+    from fatigue_pin.core.progress import Reporter
     from fatigue_pin.io.results import ResultFileError, list_runs, read_run
     from fatigue_pin.verify import ReferenceIntegration, VerifyTolerances, verify_run
 
@@ -220,9 +221,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if not names:
         raise ResultFileError(f"{str(args.file)!r} holds no OCP run")
     failed = []
+    progress = Reporter.for_stream(sys.stderr)  # a bar over the intervals on a terminal, quiet otherwise
     for name in names:
         report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=reference.rtol,
-                            atol=reference.atol, method=reference.method)
+                            atol=reference.atol, method=reference.method, progress=progress)
         print(report.table(), end="\n\n" if len(names) > 1 else "\n", flush=True)
         if not report.passed:
             failed.append(name)
