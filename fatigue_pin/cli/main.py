@@ -7,13 +7,11 @@ solving happens here.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import importlib
-import inspect
 import sys
 from pathlib import Path
 from typing import Any
 
+from fatigue_pin.cli.options import DefaultsFormatter, check_options, given, option, owner_default
 from fatigue_pin.core.errors import FatiguePinError, UsageError
 from fatigue_pin.core.signals import Interrupted, watch
 
@@ -28,55 +26,11 @@ _SLIDING = "fatigue_pin.drivers.sliding:SlidingSettings"
 _CURL = "fatigue_pin.paper.curl:curl_study_dict"
 
 
-def _owner(target: str) -> Any:
-    module, name = target.split(":")
-    return getattr(importlib.import_module(module), name)
-
-
-def owner_default(target: str, name: str | None) -> Any:
-    """The default of setting ``name`` of the settings class, or of argument ``name`` of the
-    function, ``target`` ("module:name"); with ``name`` None, the value ``target`` itself."""
-    owner = _owner(target)
-    if name is None:
-        return owner
-    if dataclasses.is_dataclass(owner):
-        from fatigue_pin.core.settings import default_of
-
-        return default_of(owner, name)
-    return inspect.signature(owner).parameters[name].default
-
-
-class _Formatter(argparse.HelpFormatter):
-    """Help texts that end with the default of the setting an option stands for, read from its
-    owner when the help is shown (so the command line holds no copy of it)."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        text = super()._get_help_string(action)
-        source = getattr(action, "default_from", None)
-        if source is None:
-            return text
-        value = owner_default(*source)
-        shown = "none" if value is None else value
-        return f"{text} (default {shown})".replace("%", "%%")
-
-
-def _option(p: argparse.ArgumentParser, *flags: str, default_from: tuple[str, str], **kwargs: Any) -> None:
-    """An option that is None unless given: its default is the one of ``default_from``
-    (:func:`owner_default`), applied where the value is used."""
-    action = p.add_argument(*flags, default=None, **kwargs)
-    action.default_from = default_from  # type: ignore[attr-defined]
-
-
-def _given(args: argparse.Namespace, **names: str) -> dict[str, Any]:
-    """The options of ``names`` (keyword -> option attribute) that were given on the line."""
-    return {key: getattr(args, attr) for key, attr in names.items() if getattr(args, attr, None) is not None}
-
-
 class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line (exit code 2), like every other error."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        kwargs.setdefault("formatter_class", _Formatter)
+        kwargs.setdefault("formatter_class", DefaultsFormatter)
         super().__init__(*args, **kwargs)
 
     def error(self, message: str):  # type: ignore[override]
@@ -118,37 +72,24 @@ _CHECKED_OPTIONS = {"cycles": (_HORIZON, "cycles"), "window": (_HORIZON, "cycles
                     "max_wall_time": (_SOLVER, "max_wall_time")}
 
 
-def _check_options(args: argparse.Namespace) -> None:
-    """Refuse an option value its setting's own check refuses, naming the option."""
-    from fatigue_pin.core.settings import check_message, expected_of, field_of
-
-    for option, (target, name) in _CHECKED_OPTIONS.items():
-        value = getattr(args, option, None)
-        if value is not None:
-            owner = _owner(target)
-            f = field_of(owner, name)
-            if check_message(owner, f, value):
-                raise UsageError(f"--{option.replace('_', '-')} {value}: expected {expected_of(f)}")
-
-
 def _curl_study(args: argparse.Namespace, horizon: str):
     """The paper's curl as a study, from the options of the ``solve`` / ``max-cycles`` shortcuts
     (options not given keep the defaults of the curl and of the settings classes)."""
     from fatigue_pin.paper.curl import curl_study_dict
     from fatigue_pin.io.study import Study
 
-    _check_options(args)
-    solver = _given(args, linear_solver="linear_solver", print_level="print_level", max_iter="max_iter",
+    check_options(args, _CHECKED_OPTIONS)
+    solver = given(args, linear_solver="linear_solver", print_level="print_level", max_iter="max_iter",
                     max_wall_time="max_wall_time")
     if args.no_compile:
         solver["compile"] = False
     bound = "n_max" if horizon == "max-cycles" else "max_cycles"
-    options = _given(args, cost="cost", preset_name="preset", S="stabilization", guess="guess", max_cycles=bound)
+    options = given(args, cost="cost", preset_name="preset", S="stabilization", guess="guess", max_cycles=bound)
     if horizon in ("full", "sliding"):  # the horizon, or the window
-        options.update(_given(args, cycles="cycles" if horizon == "full" else "window"))
+        options.update(given(args, cycles="cycles" if horizon == "full" else "window"))
     data = curl_study_dict(horizon, solver=solver, **options)
     if horizon == "sliding":
-        data["horizon"].update(_given(args, advance="advance"))
+        data["horizon"].update(given(args, advance="advance"))
     if args.urdf is not None:
         data["model"]["urdf"] = str(args.urdf)
     return Study.from_dict(data)
@@ -220,7 +161,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         raise UsageError(f"--jobs {args.jobs}: expected a number of worker processes >= 1")
     out = args.out if args.out is not None else owner_default("fatigue_pin.paper.reproduce:reproduce", "out")
     check_output_dir(out)
-    reproduce(out, quick=args.quick, jobs=args.jobs, progress=_reporter(), **_given(args, preset="preset"))
+    reproduce(out, quick=args.quick, jobs=args.jobs, progress=_reporter(), **given(args, preset="preset"))
     return 0
 
 
@@ -263,14 +204,15 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     return sweep_command(args.sweep, args.out, scheduler=args.scheduler, slurm=args.slurm, workers=args.workers,
                          queue=args.queue, walltime=args.walltime, cores=args.cores, memory=args.memory,
-                         interface=args.interface, cache_dir=args.cache, progress=_say, **_given(args, retries="retries"))
+                         interface=args.interface, cache_dir=args.cache, progress=_say, **given(args, retries="retries"))
 
 
 def _cmd_verify(args: argparse.Namespace) -> int:
+    from fatigue_pin.core.progress import Reporter
     from fatigue_pin.io.results import ResultFileError, list_runs, read_run
     from fatigue_pin.verify import ReferenceIntegration, VerifyTolerances, verify_run
 
-    reference = ReferenceIntegration(**_given(args, rtol="rtol", atol="atol", method="method"))  # refused before reading anything
+    reference = ReferenceIntegration(**given(args, rtol="rtol", atol="atol", method="method"))  # refused before reading anything
     tol = VerifyTolerances(gap=args.gap_tol, gap_fatigue=args.gap_fatigue_tol, task=args.task_tol, coupling=args.coupling_tol,
                            bound=args.bound_tol)
     if args.all and args.run is not None:
@@ -279,9 +221,10 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if not names:
         raise ResultFileError(f"{str(args.file)!r} holds no OCP run")
     failed = []
+    progress = Reporter.for_stream(sys.stderr)  # a bar over the intervals on a terminal, quiet otherwise
     for name in names:
         report = verify_run(read_run(args.file, name), tol, single_shooting=args.single_shooting, rtol=reference.rtol,
-                            atol=reference.atol, method=reference.method)
+                            atol=reference.atol, method=reference.method, progress=progress)
         print(report.table(), end="\n\n" if len(names) > 1 else "\n", flush=True)
         if not report.passed:
             failed.append(name)
@@ -291,16 +234,16 @@ def _cmd_verify(args: argparse.Namespace) -> int:
 
 
 def _add_ocp_arguments(p: argparse.ArgumentParser) -> None:
-    _option(p, "--cost", default_from=(_CURL, "cost"), choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
-    _option(p, "--stabilization", "-S", type=float, default_from=(_CURL, "S"), help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
-    _option(p, "--preset", default_from=(_CURL, "preset_name"), choices=["paper", "authors-code"],
+    option(p, "--cost", default_from=(_CURL, "cost"), choices=["fatigue-torque", "fatigue", "torque"], help="cost function")
+    option(p, "--stabilization", "-S", type=float, default_from=(_CURL, "S"), help="stabiliser S of the 3CC-S model (1/s); 0: Xia's 3CC")
+    option(p, "--preset", default_from=(_CURL, "preset_name"), choices=["paper", "authors-code"],
             help="values of the paper text or the authors' code")
-    _option(p, "--guess", default_from=(_HORIZON, "guess"), choices=["rest", "physical"],
+    option(p, "--guess", default_from=(_HORIZON, "guess"), choices=["rest", "physical"],
             help="initial guess: the initial state everywhere with zero torque (the paper's), or a smooth motion through the targets")
-    _option(p, "--linear-solver", default_from=(_SOLVER, "linear_solver"), help="IPOPT linear solver")
-    _option(p, "--max-iter", type=int, default_from=(_SOLVER, "max_iter"), help="IPOPT iteration limit per solve")
+    option(p, "--linear-solver", default_from=(_SOLVER, "linear_solver"), help="IPOPT linear solver")
+    option(p, "--max-iter", type=int, default_from=(_SOLVER, "max_iter"), help="IPOPT iteration limit per solve")
     p.add_argument("--no-compile", action="store_true", help="evaluate the NLP without generating and compiling C")
-    _option(p, "--print-level", type=int, default_from=(_SOLVER, "print_level"), help="IPOPT print level")
+    option(p, "--print-level", type=int, default_from=(_SOLVER, "print_level"), help="IPOPT print level")
     p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
     _add_output_arguments(p)
 
@@ -344,18 +287,18 @@ def _add_curl_commands(sub: Any) -> None:
     """solve, max-cycles: the paper's curl without a study file."""
     p = sub.add_parser("solve", help="shortcut: the paper's curl over the full horizon or window by window")
     p.add_argument("horizon", choices=["full", "sliding"])
-    _option(p, "--cycles", type=int, default_from=(_HORIZON, "cycles"), help="full horizon: number of cycles")
-    _option(p, "--window", type=int, default_from=("fatigue_pin.paper.curl:WINDOW", None), help="sliding: cycles per window")
-    _option(p, "--advance", type=int, default_from=(_SLIDING, "advance"), help="sliding: cycles the window advances")
-    _option(p, "--max-cycles", type=int, default_from=(_SLIDING, "max_cycles"), help="sliding: stop once this many cycles are kept")
+    option(p, "--cycles", type=int, default_from=(_HORIZON, "cycles"), help="full horizon: number of cycles")
+    option(p, "--window", type=int, default_from=("fatigue_pin.paper.curl:WINDOW", None), help="sliding: cycles per window")
+    option(p, "--advance", type=int, default_from=(_SLIDING, "advance"), help="sliding: cycles the window advances")
+    option(p, "--max-cycles", type=int, default_from=(_SLIDING, "max_cycles"), help="sliding: stop once this many cycles are kept")
     p.add_argument("--resume", action="store_true", help="sliding: continue the run stored in --out")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_solve)
 
     p = sub.add_parser("max-cycles", help="shortcut: largest number of cycles the curl's full-horizon OCP converges for")
-    _option(p, "--n-max", type=int, default_from=(_SLIDING, "max_cycles"),
+    option(p, "--n-max", type=int, default_from=(_SLIDING, "max_cycles"),
             help="largest N tried; without it, gallop N = 1, 2, 4, ... until a failure, then bisect")
-    _option(p, "--max-wall-time", type=float, default_from=(_SOLVER, "max_wall_time"), help="wall-time limit of one solve, s")
+    option(p, "--max-wall-time", type=float, default_from=(_SOLVER, "max_wall_time"), help="wall-time limit of one solve, s")
     p.add_argument("--resume", action="store_true", help="continue the search stored in --out")
     _add_ocp_arguments(p)
     p.set_defaults(func=_cmd_max_cycles)
@@ -364,13 +307,13 @@ def _add_curl_commands(sub: Any) -> None:
 def _add_paper_commands(sub: Any) -> None:
     """demo, reproduce."""
     p = sub.add_parser("demo", help="solve the sliding-horizon curl to exhaustion; write HDF5, figures and a replay")
-    _option(p, "--out", type=Path, default_from=("fatigue_pin.paper.reproduce:demo", "out"), help="output folder")
+    option(p, "--out", type=Path, default_from=("fatigue_pin.paper.reproduce:demo", "out"), help="output folder")
     p.add_argument("--max-cycles", type=int, default=None, help="stop after this many cycles (default: exhaustion)")
     p.set_defaults(func=_cmd_demo)
 
     p = sub.add_parser("reproduce", help="run the paper's whole study and write report.md beside the results")
-    _option(p, "--out", type=Path, default_from=("fatigue_pin.paper.reproduce:reproduce", "out"), help="output folder")
-    _option(p, "--preset", default_from=("fatigue_pin.paper.reproduce:reproduce", "preset"), choices=["paper", "authors-code"],
+    option(p, "--out", type=Path, default_from=("fatigue_pin.paper.reproduce:reproduce", "out"), help="output folder")
+    option(p, "--preset", default_from=("fatigue_pin.paper.reproduce:reproduce", "preset"), choices=["paper", "authors-code"],
             help="values of the paper text or the authors' code")
     p.add_argument("--quick", action="store_true", help="a subset that finishes in a few minutes")
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the number of cores)")
@@ -403,12 +346,13 @@ def _add_sweep_command(sub: Any) -> None:
     where.add_argument("--slurm", action="store_true", help="start workers as SLURM jobs (dask-jobqueue)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per core); --slurm: at most this many")
     p.add_argument("--queue", default=None, help="--slurm: partition")
-    p.add_argument("--walltime", default=None, help="--slurm: time limit of each SLURM job (default 01:00:00)")
-    p.add_argument("--cores", type=int, default=None, help="--slurm: cores (single-threaded workers) per SLURM job (default 1)")
-    p.add_argument("--memory", default=None, help="--slurm: memory per SLURM job (default 4GB)")
+    slurm = "fatigue_pin.sweep.cluster:SlurmSettings"
+    option(p, "--walltime", default_from=(slurm, "walltime"), help="--slurm: time limit of each SLURM job")
+    option(p, "--cores", type=int, default_from=(slurm, "cores"), help="--slurm: cores (single-threaded workers) per SLURM job")
+    option(p, "--memory", default_from=(slurm, "memory"), help="--slurm: memory per SLURM job")
     p.add_argument("--interface", default=None, help="--slurm: network interface the scheduler listens on (e.g. ib0)")
     p.add_argument("--cache", type=Path, default=None, help="folder of compiled code for every job (default ~/.cache/fatigue_pin)")
-    _option(p, "--retries", type=int, default_from=("fatigue_pin.sweep.jobs:sweep_command", "retries"),
+    option(p, "--retries", type=int, default_from=("fatigue_pin.sweep.runner:sweep_command", "retries"),
             help="Dask retries of a job that raised a file system error")
     p.set_defaults(func=_cmd_sweep)
 
@@ -425,9 +369,9 @@ def _add_verify_command(sub: Any) -> None:
     p.add_argument("run", nargs="?", default=None, help="run name (needed when the file holds several)")
     p.add_argument("--all", action="store_true", help="verify every run of the file")
     p.add_argument("--single-shooting", action="store_true", help="also integrate the stored controls over the whole horizon")
-    _option(p, "--rtol", type=float, default_from=(run, "rtol"), help="solve_ivp rtol")
-    _option(p, "--atol", type=float, default_from=(run, "atol"), help="solve_ivp atol")
-    _option(p, "--method", default_from=(run, "method"), choices=list(METHODS),
+    option(p, "--rtol", type=float, default_from=(run, "rtol"), help="solve_ivp rtol")
+    option(p, "--atol", type=float, default_from=(run, "atol"), help="solve_ivp atol")
+    option(p, "--method", default_from=(run, "method"), choices=list(METHODS),
             help="solve_ivp method (the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
     p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
     p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")

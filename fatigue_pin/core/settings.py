@@ -88,6 +88,16 @@ def default_of(cls: type, name: str) -> Any:
     return default_value(field_of(cls, name))
 
 
+def replaced(cls: type, settings: Any, changes: Mapping[str, Any], error: type[Exception] = ParameterError) -> Any:
+    """``settings`` (an instance of ``cls``; None: its defaults) with ``changes`` (field name ->
+    value), validated; a name that is not a field of ``cls`` is ``error``."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    unknown = [k for k in changes if k not in names]
+    if unknown:
+        raise error(f"{cls.__name__}: unknown setting {unknown[0]!r}; expected one of {names}")
+    return dataclasses.replace(settings if settings is not None else cls(), **changes)
+
+
 def field_of(cls: type, name: str) -> dataclasses.Field:
     for f in dataclasses.fields(cls):
         if f.name == name:

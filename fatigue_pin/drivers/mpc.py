@@ -136,16 +136,6 @@ def phase_shifted(problem: Problem, shift: int) -> Problem:
     return dataclasses.replace(problem, task=dataclasses.replace(task, items=tuple(items), q_init=None))
 
 
-class WindowOcp(Ocp):
-    """A window of the closed loop: node 0 is the measured state even where the task puts a
-    target there (the plant is where it is; the target of that node is past)."""
-
-    def state_bounds(self, x_init: np.ndarray, x_end: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        X_lb, X_ub = super().state_bounds(x_init, x_end)
-        X_lb[:, 0] = X_ub[:, 0] = x_init
-        return X_lb, X_ub
-
-
 def task_errors(problem: Problem, x: np.ndarray, n_cycles: int) -> np.ndarray:
     """Task error of every cycle of a trajectory x (nodes >= n_cycles n + 1, nx): the largest
     distance of a target item (joint targets, and task constraints at a phase) from its bounds at
@@ -258,8 +248,9 @@ class ClosedLoop:
         phase %= self.n
         if phase not in self._ocps:
             functions = self._ocps[0].functions if self._ocps else None
-            self._ocps[phase] = WindowOcp(phase_shifted(self.problem, phase), self.sliding.window, self.transcription,
-                                          self.solver, self.sliding.end_tolerance, self.guess, functions, self.progress)
+            # node 0 is the measured state even where the shifted task puts a target there (Ocp.state_bounds)
+            self._ocps[phase] = Ocp(phase_shifted(self.problem, phase), self.sliding.window, self.transcription,
+                                    self.solver, self.sliding.end_tolerance, self.guess, functions, self.progress)
         return self._ocps[phase]
 
     def new_estimator(self):

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -36,6 +36,7 @@ from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_wi
 from fatigue_pin.ocp.guesses import shifted_window_guess
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.task import Task
 from fatigue_pin.ocp.transcription import OcpSolution, Transcription
 
 
@@ -117,6 +118,26 @@ def median_real_time_factor(windows: np.ndarray, advanced_s: float) -> float:
     """Median :func:`real_time_factors` of the converged windows (NaN when none converged)."""
     ok = np.asarray(windows["converged"], dtype=bool) if len(windows) else np.zeros(0, dtype=bool)
     return float(np.median(real_time_factors(windows, advanced_s)[ok])) if ok.any() else float("nan")
+def stitched_nodes(task: Task, at: float | None, window: int, advance: int, first_cycles: Sequence[int]) -> list[int]:
+    """Nodes of a stitched run where the windows put the task's phase ``at`` (every node for
+    ``None``), in order.
+
+    Each converged window (its first cycle in ``first_cycles``, in order) contributes its own
+    nodes of the phase (:meth:`Task.nodes` over its K cycles) shifted to its first cycle, within
+    the part of it the run keeps: its first A cycles up to the join (the next window's node 0,
+    which is this node), all K for the last window. A window's node 0 is its start state, not
+    one of its target nodes (:meth:`Ocp.state_bounds`), except the run's first node. With
+    ``advance < window`` these are ``Task.nodes`` over the stitched run; with ``advance ==
+    window`` and ``final_node_offset = -1`` the phase-0 targets sit one node before each join.
+    """
+    n = task.intervals_per_cycle
+    nodes: set[int] = set()
+    for w, first in enumerate(first_cycles):
+        kept = (window if w == len(first_cycles) - 1 else advance) * n
+        nodes.update(first * n + k for k in task.nodes(at, window * n) if k <= kept and (k > 0 or w == 0))
+    return sorted(nodes)
+
+
 def iteration_limit(converged_iterations: list[int], settings: SlidingSettings, max_iter: int) -> int | None:
     """IPOPT iteration limit of the next window: ``failure_iterations`` times the median
     iterations of the first ``warmup`` converged windows (``converged_iterations``, in order;

@@ -29,6 +29,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -37,12 +38,14 @@ from scipy.stats import t as student_t
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
 from fatigue_pin.core.errors import CalibrationDataError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, check_output_file
+from fatigue_pin.core.settings import check_fields, default_of, is_number, replaced, setting
 from fatigue_pin.fatigue.models import XiaFatigue
 
 __all__ = [
     "CalibrationDataError",
     "EnduranceData",
     "CalibrationResult",
+    "CalibrationSettings",
     "MODELS",
     "read_endurance_csv",
     "predict",
@@ -60,6 +63,30 @@ _BIG_ET = 1e9  # s: stands for an infinite predicted endurance time inside the r
 #: Endurance times the fit accepts (s): from a millisecond (rates F ~ 1 / ET stay far from overflow)
 #: up to ``_BIG_ET`` (which stands for an infinite time).
 ET_RANGE = (1e-3, _BIG_ET)
+#: How intermittent rows are predicted: the exact instant-activation cycles, or the ODE with LD, LR.
+INTERMITTENT = ("closed-form", "ode")
+
+
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """How :func:`calibrate` fits (the options of ``fatigue-pin calibrate``, whose defaults are these).
+
+    Attributes:
+        model: the model fitted, a key of :data:`MODELS` (``3cc``: F, R; ``3cc-r``: F, R, r).
+        LD: development factor written with the result, used by ``intermittent = "ode"`` (1/s).
+        LR: relaxation factor written with the result, used by ``intermittent = "ode"`` (1/s).
+        confidence: level of the confidence intervals, in (0, 1).
+        intermittent: how intermittent rows are predicted (:data:`INTERMITTENT`).
+    """
+
+    model: str = setting("3cc", f"one of {sorted(MODELS)}", lambda v: v in MODELS)
+    LD: float = setting(10.0, "a finite rate >= 0 (1/s)", lambda v: is_number(v) and v >= 0)
+    LR: float = setting(10.0, "a finite rate >= 0 (1/s)", lambda v: is_number(v) and v >= 0)
+    confidence: float = setting(0.95, "a level in (0, 1), e.g. 0.95", lambda v: is_number(v) and 0 < v < 1)
+    intermittent: str = setting("closed-form", " or ".join(repr(k) for k in INTERMITTENT), lambda v: v in INTERMITTENT)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @dataclass(frozen=True)
@@ -190,9 +217,11 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
 # -- model --------------------------------------------------------------------------------------------
 
 
-def predict(params: dict[str, float], data: EnduranceData, intermittent: str = "closed-form", LD: float = 10.0,
-            LR: float = 10.0) -> np.ndarray:
-    """Predicted endurance times (s) of the tasks of ``data`` for ``params`` (``F``, ``R``, optional ``r``)."""
+def predict(params: dict[str, float], data: EnduranceData, settings: CalibrationSettings | None = None) -> np.ndarray:
+    """Predicted endurance times (s) of the tasks of ``data`` for ``params`` (``F``, ``R``, optional
+    ``r``); intermittent rows as ``settings.intermittent`` says (with its LD, LR for ``ode``)."""
+    settings = settings or CalibrationSettings()
+    intermittent, LD, LR = settings.intermittent, settings.LD, settings.LR
     F, R, r = params["F"], params["R"], params.get("r", 1.0)
     out = np.empty(data.n)
     for i in range(data.n):
@@ -266,7 +295,7 @@ class CalibrationResult:
     success: bool
     message: str
     nfev: int
-    intermittent: str = "closed-form"
+    intermittent: str = default_of(CalibrationSettings, "intermittent")
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -321,27 +350,16 @@ class CalibrationResult:
         return atomic_write_bytes(Path(path), (json.dumps(self.to_dict(), indent=2) + "\n").encode())
 
 
-def calibrate(
-    data: EnduranceData,
-    model: str = "3cc",
-    LD: float = 10.0,
-    LR: float = 10.0,
-    confidence: float = 0.95,
-    intermittent: str = "closed-form",
-) -> CalibrationResult:
-    """Fit ``model`` (``"3cc"``: F, R; ``"3cc-r"``: F, R, r) to ``data``; see the module docstring.
+def calibrate(data: EnduranceData, settings: CalibrationSettings | None = None, **changes: Any) -> CalibrationResult:
+    """Fit the model of ``settings`` (:class:`CalibrationSettings`, with ``changes`` to its fields
+    by name, e.g. ``model="3cc-r"``) to ``data``; see the module docstring.
 
     Raises:
         CalibrationDataError: fewer rows than parameters, or ``3cc-r`` without intermittent rows.
         ParameterError: unknown model or ``intermittent`` option, bad LD, LR or confidence.
     """
-    if model not in MODELS:
-        raise ParameterError(f"calibration model = {model!r}: expected one of {sorted(MODELS)}")
-    if intermittent not in ("closed-form", "ode"):
-        raise ParameterError(f"intermittent = {intermittent!r}: expected 'closed-form' or 'ode'")
-    if not 0.0 < confidence < 1.0:
-        raise ParameterError(f"confidence = {confidence!r}: expected a level in (0, 1), e.g. 0.95")
-    XiaFatigue(LD=LD, LR=LR, F=0.0, R=0.0)  # validates LD, LR
+    settings = replaced(CalibrationSettings, settings, changes)
+    model, confidence, intermittent = settings.model, settings.confidence, settings.intermittent
     names = MODELS[model]
     if data.n < len(names):
         raise CalibrationDataError(
@@ -352,7 +370,7 @@ def calibrate(
             "3cc-r model with sustained tasks only: r acts during rests and cannot be fitted; expected rows with "
             "duty_cycle < 1 (or use --model 3cc)"
         )
-    kw = dict(intermittent=intermittent, LD=LD, LR=LR)
+    kw = dict(settings=settings)
     x0 = _start(names, data, **kw)
     diff_step = 1e-6 if intermittent == "closed-form" and not data.intermittent.any() else 1e-4
     try:
@@ -389,7 +407,7 @@ def calibrate(
         notes.append(f"{n} rows for {p} parameters: the fit interpolates the data and has no residual dof; no CIs")
     if not np.all(np.isfinite(et_fit)):
         notes.append("some fitted endurance times are infinite (the fatigued fraction settles below 1 - TL)")
-    return CalibrationResult(model, params, float(LD), float(LR), float(confidence), ci, se_log, res.copy(), et_fit,
+    return CalibrationResult(model, params, float(settings.LD), float(settings.LR), float(confidence), ci, se_log, res.copy(), et_fit,
                              data, bool(sol.success), str(sol.message), int(sol.nfev), intermittent, notes)
 
 
@@ -428,11 +446,13 @@ def plot_calibration(result: CalibrationResult, path: str | Path) -> Path:
     return out
 
 
-def run_calibrate(data_csv: str | Path, out_json: str | Path, model: str = "3cc", LD: float = 10.0, LR: float = 10.0,
-                  confidence: float = 0.95, intermittent: str = "closed-form") -> tuple[CalibrationResult, dict[str, Path]]:
-    """Read ``data_csv``, fit, write ``out_json`` and ``<out_json stem>.png`` beside it (output checked first)."""
+def run_calibrate(data_csv: str | Path, out_json: str | Path, settings: CalibrationSettings | None = None,
+                  **changes: Any) -> tuple[CalibrationResult, dict[str, Path]]:
+    """Read ``data_csv``, fit (:func:`calibrate` with ``settings`` and ``changes``), write
+    ``out_json`` and ``<out_json stem>.png`` beside it (settings and output checked first)."""
+    settings = replaced(CalibrationSettings, settings, changes)
     out = check_output_file(out_json, ".json")
     data = read_endurance_csv(data_csv)
-    result = calibrate(data, model=model, LD=LD, LR=LR, confidence=confidence, intermittent=intermittent)
+    result = calibrate(data, settings)
     paths = {"json": result.write_json(out), "png": plot_calibration(result, out.with_suffix(".png"))}
     return result, paths

@@ -6,12 +6,15 @@ from __future__ import annotations
 import datetime
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from fatigue_pin.core.files import atomic_write, check_output_dir
 from fatigue_pin.core.progress import Progress
+from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, is_str, replaced, setting
 from fatigue_pin.fatigue.endurance import (
     DEFAULT_LOADS,
     FREY_LAW_AVIN_2010,
@@ -26,7 +29,37 @@ from fatigue_pin.fatigue.endurance import (
 )
 from fatigue_pin.fatigue.models import XiaFatigue
 
-__all__ = ["format_table", "format_comparison", "write_h5", "plot_endurance", "run_endurance"]
+__all__ = ["EnduranceSettings", "format_table", "format_comparison", "write_h5", "plot_endurance", "run_endurance"]
+
+
+def _fractions(v: Any) -> bool:
+    return len(v) > 0 and all(is_number(x) and 0 < x <= 1 for x in v)
+
+
+@dataclass(frozen=True)
+class EnduranceSettings:
+    """What :func:`run_endurance` computes (the options of ``fatigue-pin endurance``, whose
+    defaults are these).
+
+    Attributes:
+        preset: a preset name (:data:`fatigue_pin.fatigue.presets.PRESETS`) or a calibrated .json file.
+        loads: target loads, fractions of the maximum in (0, 1].
+        duty_cycle: fraction of each cycle at the target load, in (0, 1] (1: sustained).
+        cycle_s: cycle length of an intermittent task (s, > 0; needed when ``duty_cycle < 1``).
+        compare: also compare per joint with Frey-Law & Avin (2010).
+        max_cycles: most cycles simulated per load of an intermittent task.
+    """
+
+    preset: str = setting("frey-law-2012/elbow", "a preset name or a calibrated .json file", is_str)
+    loads: tuple[float, ...] = setting(DEFAULT_LOADS, "target loads, fractions in (0, 1]", _fractions)
+    duty_cycle: float = setting(1.0, "a fraction in (0, 1]", lambda v: is_number(v) and 0 < v <= 1)
+    cycle_s: float | None = setting(None, "a cycle length > 0 (s)", lambda v: is_number(v) and v > 0)
+    compare: bool = setting(True, "true or false", is_bool)
+    max_cycles: int = setting(MAX_CYCLES, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "loads", tuple(self.loads))
+        check_fields(self)
 
 
 def _fmt(x: float) -> str:
@@ -169,22 +202,17 @@ def plot_endurance(path: Path | str, tables: Sequence[EnduranceTable], compariso
     return out
 
 
-def run_endurance(
-    out_dir: Path | str,
-    preset_name: str = "frey-law-2012/elbow",
-    loads: Sequence[float] = DEFAULT_LOADS,
-    duty_cycle: float = 1.0,
-    cycle_s: float | None = None,
-    compare: bool = True,
-    max_cycles: int = MAX_CYCLES,
-    progress: Progress = None,
-) -> tuple[EnduranceTable, list[EnduranceTable], dict[str, Path]]:
+def run_endurance(out_dir: Path | str, settings: EnduranceSettings | None = None, progress: Progress = None,
+                  **changes: Any) -> tuple[EnduranceTable, list[EnduranceTable], dict[str, Path]]:
     """Endurance table of a preset (name or JSON file), the per-joint comparison with Frey-Law &
-    Avin (2010), ``endurance.h5`` and ``endurance.png`` in ``out_dir`` (checked first).
+    Avin (2010), ``endurance.h5`` and ``endurance.png`` in ``out_dir`` (checked first), as
+    ``settings`` (:class:`EnduranceSettings`, with ``changes`` to its fields by name) say.
     ``max_cycles`` bounds each intermittent simulation, ``progress`` receives its lines
     (:func:`~fatigue_pin.fatigue.endurance.endurance_time`)."""
     from fatigue_pin.fatigue.presets import preset, preset_source
 
+    s = replaced(EnduranceSettings, settings, changes)
+    preset_name, loads, duty_cycle, cycle_s, compare, max_cycles = s.preset, s.loads, s.duty_cycle, s.cycle_s, s.compare, s.max_cycles
     model = preset(preset_name)
     source = preset_source(preset_name)
     out = check_output_dir(out_dir)

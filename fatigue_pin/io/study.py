@@ -13,12 +13,13 @@ their defaults and their checks come from the classes each table configures
 
 from __future__ import annotations
 
-import copy
 import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from fatigue_pin.core.errors import FatiguePinError
 from fatigue_pin.io.schema import StudyError, build
@@ -53,7 +54,10 @@ class Study:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Study:
-        return cls(normalise(copy.deepcopy(data)))
+        """A study from a table (validated, every default filled). The one place values enter a
+        study: numpy scalars and arrays become plain Python numbers and lists here, so that the
+        study, its TOML and its job id are the same whichever type the caller passed."""
+        return cls(normalise(_plain(data)))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "study") -> Study:
@@ -103,7 +107,7 @@ class Study:
 
     def replace(self, changes: dict[str, Any]) -> Study:
         """A copy with dotted keys changed, e.g. ``{"fatigue.S": 0.0, "horizon.kind": "full"}``."""
-        data = copy.deepcopy(self.data)
+        data = _plain(self.data)  # a copy
         for dotted, value in changes.items():
             parts = dotted.split(".")
             node = data
@@ -199,6 +203,20 @@ class Study:
     def horizon_settings(self):
         """The :class:`~fatigue_pin.drivers.horizon.Horizon` of ``[horizon]``."""
         return build(SECTIONS["horizon"], self.data["horizon"], "horizon")
+
+
+def _plain(value: Any) -> Any:
+    """A copy of ``value`` made of plain Python values: numpy scalars as Python numbers (bools,
+    strings), numpy arrays and tuples as (nested) lists; tables and lists copied item by item."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())  # a 0-d array gives its scalar
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def _fatigue_model(table: dict[str, Any], parent: dict[str, Any] | None):

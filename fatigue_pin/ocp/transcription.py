@@ -81,7 +81,9 @@ class Transcription:
             sum of the halves into the rigid body directly (how the paper's code does it).
         target_rows: joint targets as equality rows in g instead of fixed variables (bounds
             lb = ub); a target at node 0 then duplicates the fixed initial state (how the paper's
-            code does it). Same feasible set, other KKT systems: for comparisons.
+            code does it; its bounds are widened to that state where it misses the target by more
+            than ``constr_viol_tol``, as :meth:`Ocp.state_bounds` lets the start state win). Same feasible set, other KKT
+            systems: for comparisons.
     """
 
     substeps: int = setting(5, f"an integer in [1, {MAX_SUBSTEPS}]", lambda v: is_int(v) and 1 <= v <= MAX_SUBSTEPS)
@@ -294,8 +296,12 @@ class Ocp:
         self.kept_rows: tuple[int, ...] = ()
         if self.transcription.target_rows:
             first = opti.g.numel()
-            for node, j, a, b in joint_target_pairs(self.task, self.model, N):
-                opti.subject_to(opti.bounded(a, X[j, node], b))
+            pairs = joint_target_pairs(self.task, self.model, N)
+            starts = [(j, a, b) for node, j, a, b in pairs if node == 0]
+            if starts:  # bounds of the node-0 rows: the targets widened to the start (parameter_vector)
+                S_lb, S_ub = params.add("start_targets_lb", len(starts)), params.add("start_targets_ub", len(starts))
+            for i, (node, j, a, b) in enumerate(pairs):  # node 0 first (sorted by node)
+                opti.subject_to(opti.bounded(S_lb[i], X[j, 0], S_ub[i]) if node == 0 else opti.bounded(a, X[j, node], b))
             self.kept_rows = tuple(range(first, opti.g.numel()))
         # state constraints of the task: expression rows with parametric bounds
         self._state_constraints = []
@@ -381,9 +387,12 @@ class Ocp:
     def state_bounds(self, x_init: np.ndarray, x_end: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Node-wise state bounds, each of shape (nx, N+1).
 
-        Model bounds on q and qdot, [0, 1] on fatigue states, joint ranges, ``x_init`` at node 0,
-        the joint targets at their nodes and, with ``end_tolerance`` set and ``x_end`` given, q
-        and qdot at the last node within ``x_end +- end_tolerance * range``.
+        Model bounds on q and qdot, [0, 1] on fatigue states, joint ranges, the joint targets at
+        their nodes, ``x_init`` at node 0 (it wins over a target there: the start state of a
+        window is the previous window's state at the join, which misses the phase-0 target when
+        the join is not one of its nodes, e.g. ``final_node_offset = -1`` with ``advance =
+        window``) and, with ``end_tolerance`` set and ``x_end`` given, q and qdot at the last node
+        within ``x_end +- end_tolerance * range``.
         """
         L, N, model = self.layout, self.n_intervals, self.model
         nf = L.n_fatigue
@@ -395,7 +404,6 @@ class Ocp:
             j = model.joint_names.index(rng.joint)
             X_lb[j, :] = np.maximum(X_lb[j, :], rng.lower)
             X_ub[j, :] = np.minimum(X_ub[j, :], rng.upper)
-        X_lb[:, 0] = X_ub[:, 0] = x_init
         # with target_rows the targets are rows of g (:meth:`_formulate`), not bounds
         targets = [] if self.transcription.target_rows else joint_target_pairs(self.task, self.model, N)
         for node, j, a, b in targets:
@@ -406,8 +414,10 @@ class Ocp:
             span = (hi - lo)[rows]
             X_lb[rows, N] = np.maximum(X_lb[rows, N], x_end[rows] - tol * span)
             X_ub[rows, N] = np.minimum(X_ub[rows, N], x_end[rows] + tol * span)
-            for node, j, a, b in targets:  # task targets win over the end box
-                X_lb[j, node], X_ub[j, node] = a, b
+            for node, j, a, b in targets:  # task targets at the last node win over the end box
+                if node == N:
+                    X_lb[j, node], X_ub[j, node] = a, b
+        X_lb[:, 0] = X_ub[:, 0] = x_init  # last: node 0 is the start state, whatever the task puts there
         return X_lb, X_ub
 
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -441,10 +451,23 @@ class Ocp:
             "weights": self.weight_vector(weights),
             "X_lb": X_lb, "X_ub": X_ub, "U_lb": U_lb, "U_ub": U_ub,
         }
+        if "start_targets_lb" in self.params.names:
+            values["start_targets_lb"], values["start_targets_ub"] = self._start_target_rows(x_init)
         for sc, nodes in self._state_constraints:
             values[f"{sc.name}_lb"] = np.tile(np.asarray(sc.lower)[:, None], (1, len(nodes)))
             values[f"{sc.name}_ub"] = np.tile(np.asarray(sc.upper)[:, None], (1, len(nodes)))
         return self.params.vector(values)
+
+    def _start_target_rows(self, x_init: np.ndarray) -> tuple[list[float], list[float]]:
+        """Bounds of the node-0 target rows (``target_rows``): the targets, widened to the start
+        state where it misses one by more than ``constr_viol_tol`` (the start state wins, as in
+        :meth:`state_bounds`; a start that meets the target within IPOPT's tolerance keeps the
+        row the paper's code has, violated by that little)."""
+        tol = self.solver_options.constr_viol_tol
+        starts = [(j, a, b) for node, j, a, b in joint_target_pairs(self.task, self.model, self.n_intervals) if node == 0]
+        lower = [a if x_init[j] >= a - tol else float(x_init[j]) for j, a, _ in starts]
+        upper = [b if x_init[j] <= b + tol else float(x_init[j]) for j, _, b in starts]
+        return lower, upper
 
     def weight_vector(self, weights: Mapping[str, float] | np.ndarray | None = None) -> np.ndarray:
         """Cost weights in :attr:`cost_terms` order from a mapping by name (or a full vector)."""

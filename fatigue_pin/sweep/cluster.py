@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import os
 import sys
+from dataclasses import dataclass
 from typing import Any
 
+from fatigue_pin.core.settings import check_fields, is_int, is_str, setting
 from fatigue_pin.sweep.plan import SweepError
 
 # -- clusters ----------------------------------------------------------------------------------------
@@ -22,14 +24,37 @@ def local_cluster(workers: int | None = None):
                         dashboard_address="127.0.0.1:0", scheduler_port=0)
 
 
-def slurm_cluster(queue: str | None = None, walltime: str = "01:00:00", cores: int = 1, memory: str = "4GB",
-                  interface: str | None = None, host: str | None = None, **kwargs: Any):
-    """A dask-jobqueue ``SLURMCluster``: each SLURM job runs ``cores`` single-threaded workers.
+@dataclass(frozen=True)
+class SlurmSettings:
+    """What each SLURM job of a sweep asks for (``fatigue-pin sweep --slurm``, whose defaults are these).
+
+    Attributes:
+        queue: the partition (None: the cluster's default).
+        walltime: time limit of each job, ``HH:MM:SS`` (it must cover the longest sweep job).
+        cores: cores per job, each running one single-threaded worker.
+        memory: memory per job, e.g. ``4GB``.
+        interface: the network interface the scheduler listens on, e.g. ``ib0`` (None: its default).
+    """
+
+    queue: str | None = setting(None, "a partition name", is_str)
+    walltime: str = setting("01:00:00", "a time limit HH:MM:SS", is_str)
+    cores: int = setting(1, "an integer >= 1", lambda v: is_int(v) and v >= 1)
+    memory: str = setting("4GB", "a memory size, e.g. 4GB", is_str)
+    interface: str | None = setting(None, "a network interface name, e.g. ib0", is_str)
+
+    def __post_init__(self) -> None:
+        check_fields(self, SweepError)
+
+
+def slurm_cluster(settings: SlurmSettings | None = None, host: str | None = None, **kwargs: Any):
+    """A dask-jobqueue ``SLURMCluster`` as ``settings`` ask (default :class:`SlurmSettings`):
+    each SLURM job runs ``cores`` single-threaded workers.
 
     The workers run this Python (``sys.executable``) with this ``PYTHONPATH`` and one OpenMP
-    thread. ``interface`` (e.g. ``ib0``) or ``host`` says where the scheduler listens (it must be
-    reachable from the compute nodes); the dashboard listens on 127.0.0.1 (reach it over ssh).
+    thread. ``settings.interface`` (e.g. ``ib0``) or ``host`` says where the scheduler listens (it
+    must be reachable from the compute nodes); the dashboard listens on 127.0.0.1 (reach it over ssh).
     """
+    s = settings or SlurmSettings()
     try:
         from dask_jobqueue import SLURMCluster
     except ImportError:
@@ -40,8 +65,8 @@ def slurm_cluster(queue: str | None = None, walltime: str = "01:00:00", cores: i
     scheduler_options = {"dashboard_address": "127.0.0.1:0", **kwargs.pop("scheduler_options", {})}
     if host is not None:
         scheduler_options["host"] = host
-    return SLURMCluster(queue=queue, walltime=walltime, cores=cores, processes=cores, memory=memory,
-                        interface=interface, python=sys.executable, job_script_prologue=prologue,
+    return SLURMCluster(queue=s.queue, walltime=s.walltime, cores=s.cores, processes=s.cores, memory=s.memory,
+                        interface=s.interface, python=sys.executable, job_script_prologue=prologue,
                         scheduler_options=scheduler_options, **kwargs)
 
 

@@ -156,6 +156,7 @@ def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None
         raise SweepError("--workers applies to the local cluster and --slurm, not to --scheduler")
     if cores is not None and cores < 1:
         raise SweepError(f"--cores {cores}: expected an integer >= 1")
+    slurm_settings = clusters.SlurmSettings(**{k.lstrip("-"): v for k, v in slurm_options.items() if v is not None})
     if scheduler:
         clusters.scheduler_address(scheduler)  # its form, before any work (it is reached only if a job is to run)
     sweep = Sweep.from_file(sweep_file)
@@ -174,7 +175,7 @@ def sweep_command(sweep_file: str | Path, out: str | Path, scheduler: str | None
         if scheduler:
             client = clusters.connect_scheduler(scheduler)
         elif slurm:
-            cluster = clusters.slurm_cluster(queue, walltime or "01:00:00", cores or 1, memory or "4GB", interface)
+            cluster = clusters.slurm_cluster(slurm_settings)
             cluster.scale(n=min(len(pending), workers or len(pending)))
             client = Client(cluster)
         else:

@@ -136,34 +136,51 @@ class GapResult:
     rk4_where: str
 
 
-def gap_checks(s: Stored, dyn: Dynamics, tol: VerifyTolerances, ref: ReferenceIntegration, notes: list[str]) -> GapResult:
+def _no_progress(_n: int) -> None:
+    pass
+
+
+def _interval_gaps(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, k: int, gy: np.ndarray, gm: np.ndarray,
+                   res: np.ndarray, trunc: np.ndarray, failed: list[str]) -> None:
+    """Fill row ``k`` of the gaps ``gy`` (q, qdot), ``gm`` (fatigue) and, with substeps, of the RK4
+    residual ``res`` and truncation ``trunc``; a failed integration is an infinite gap, named in ``failed``."""
+    nm = s.M.shape[1]
+    fy, fm = dyn.rigid(s.tau[k]), dyn.fatigue(s.TL[k])
+    try:
+        ey = integrate(fy, s.Y[k], s.dt, ref)
+        em = integrate(fm, s.M[k], s.dt, ref) if nm else s.M[k]
+    except IntegrationFailed as exc:
+        gy[k], gm[k] = np.inf, np.inf
+        failed.append(f"interval {k} ({exc})")
+        return
+    gy[k], gm[k] = np.abs(ey - s.Y[k + 1]), np.abs(em - s.M[k + 1])
+    if s.substeps:
+        ry = rk4(fy, s.Y[k], s.dt, s.substeps)
+        rm = rk4(fm, s.M[k], s.dt, s.substeps) if nm else s.M[k]
+        res[k] = np.abs(np.concatenate([ry - s.Y[k + 1], rm - s.M[k + 1]]))
+        trunc[k] = np.abs(np.concatenate([ry - ey, rm - em]))
+
+
+def gap_checks(s: Stored, dyn: Dynamics, tol: VerifyTolerances, ref: ReferenceIntegration, notes: list[str],
+               advance: Callable[[int], None] = _no_progress) -> GapResult:
     """Multiple-shooting gaps: each interval integrated from its stored node with its stored control
     held; with the stored substeps, the transcription's RK4 too (its residual says whether the NLP
-    was solved, its distance to the exact flow how coarse the grid is)."""
+    was solved, its distance to the exact flow how coarse the grid is). ``advance(n)`` is told of
+    every interval done (N in all: those not integrated count too)."""
     N, nq, nm = s.N, s.nq, s.M.shape[1]
     gy, gm = np.full((N, 2 * nq), np.nan), np.full((N, nm), np.nan)
     res, trunc = np.full((N, 2 * nq + nm), np.nan), np.full((N, 2 * nq + nm), np.nan)
     ok = finite_intervals(s)
     failed: list[str] = []
-    for k in np.flatnonzero(ok):
-        if len(failed) >= MAX_FAILED_INTERVALS:
+    stopped = False
+    for k in range(N):
+        if ok[k] and not stopped and len(failed) >= MAX_FAILED_INTERVALS:
             notes.append(f"the gaps of intervals {k} to {N - 1} were not computed: the reference integration failed "
                          f"on {MAX_FAILED_INTERVALS} intervals already")
-            break
-        fy, fm = dyn.rigid(s.tau[k]), dyn.fatigue(s.TL[k])
-        try:
-            ey = integrate(fy, s.Y[k], s.dt, ref)
-            em = integrate(fm, s.M[k], s.dt, ref) if nm else s.M[k]
-        except IntegrationFailed as exc:
-            gy[k], gm[k] = np.inf, np.inf
-            failed.append(f"interval {k} ({exc})")
-            continue
-        gy[k], gm[k] = np.abs(ey - s.Y[k + 1]), np.abs(em - s.M[k + 1])
-        if s.substeps:
-            ry = rk4(fy, s.Y[k], s.dt, s.substeps)
-            rm = rk4(fm, s.M[k], s.dt, s.substeps) if nm else s.M[k]
-            res[k] = np.abs(np.concatenate([ry - s.Y[k + 1], rm - s.M[k + 1]]))
-            trunc[k] = np.abs(np.concatenate([ry - ey, rm - em]))
+            stopped = True
+        if ok[k] and not stopped:
+            _interval_gaps(s, dyn, ref, k, gy, gm, res, trunc, failed)
+        advance(1)
     if not ok.all():
         notes.append(f"{int((~ok).sum())} of {N} intervals not re-integrated: their stored values are not finite")
     if failed:
@@ -204,11 +221,13 @@ def _invariant(s: Stored, M: np.ndarray) -> np.ndarray:
     return np.abs(1.0 - np.column_stack([M[:, off[i]:off[i + 1]].sum(axis=1) for i in range(len(s.halves))]))
 
 
-def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report: VerifyReport) -> None:
+def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report: VerifyReport,
+                    advance: Callable[[int], None] = _no_progress) -> None:
     """Integrate the stored controls over the whole horizon from the stored x_0 and add the drift
     of the states and of the invariant to ``report`` (reported only). The rigid body's open-loop
     integration can blow up over long horizons: it is then reported as an infinite drift with a
-    note, and the fatigue states (which depend on the controls only) are integrated to the end."""
+    note, and the fatigue states (which depend on the controls only) are integrated to the end.
+    ``advance(n)`` is told of every interval done (N in all)."""
     N, nq, Y, M = s.N, s.nq, s.Y, s.M
     ys, ms = np.full_like(Y, np.nan), np.full_like(M, np.nan)
     ys[0], ms[0] = Y[0], M[0]
@@ -224,6 +243,7 @@ def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report:
                 ms[k + 1] = integrate(dyn.fatigue(s.TL[k]), ms[k], s.dt, ref)
             except IntegrationFailed:
                 stopped = k
+        advance(1)
     dq, at_dq = worst(np.abs(ys[:, :nq] - Y[:, :nq]), s.joints, "node")
     dv, at_dv = worst(np.abs(ys[:, nq:] - Y[:, nq:]), s.joints, "node")
     if diverged is not None:

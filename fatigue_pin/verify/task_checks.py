@@ -16,7 +16,9 @@ kind                          violation at a node k of the item                 
 ============================  ================================================  ======
 
 with ``p_k``, ``R_k`` the frame's world position and rotation at node k, and the nodes
-:meth:`Task.nodes` gives for the item's phase (every node for ranges and planes without a phase).
+:meth:`Task.nodes` gives for the item's phase (every node for ranges and planes without a phase);
+for a sliding run, the nodes its windows gave the phase
+(:func:`~fatigue_pin.drivers.sliding.stitched_nodes`: a window's node 0 is its start state).
 A kind verify does not know (e.g. a Python :class:`StateConstraint`, whose expression is the
 package's own CasADi) is shown as "not checked", with a note naming it. The initial state is
 checked against the task's initial configuration, zero velocity and every half at rest.
@@ -162,7 +164,7 @@ def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
         return [VerifyCheck("task", float("nan"), "", tol, "not checked"), VerifyCheck("initial state", float("nan"), "", tol, "not checked")]
     task = s.task
     ctx = _Context(np.asarray(s.run.q, dtype=float), s.joints, _Frames(s.robot.pin_model, np.asarray(s.run.q, dtype=float)),
-                   lambda at: task.nodes(at, s.N))
+                   _phase_nodes(s, notes))
     checks = []
     for cls, kind in KINDS.items():
         items = [i for i in task.items if type(i) is cls]
@@ -180,6 +182,28 @@ def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
         notes.append("the stored task has no items: only the initial state is checked")
     checks.append(_initial_state(s, tol, notes))
     return checks
+
+
+def _phase_nodes(s: Stored, notes: list[str]) -> Callable[[float | None], list[int]]:
+    """The nodes of a phase: :meth:`Task.nodes` over the run, or, for a sliding run with its
+    window table, the nodes its windows put the phase on
+    (:func:`~fatigue_pin.drivers.sliding.stitched_nodes`)."""
+    task, run = s.task, s.run
+    whole = lambda at: task.nodes(at, s.N)  # noqa: E731
+    if s.horizon != "sliding" or run.windows is None:
+        return whole
+    try:
+        window, advance = int(run.attrs["window"]), int(run.attrs["advance"])
+        first = [int(c) for c in np.asarray(run.windows["first_cycle"])[np.asarray(run.windows["converged"], dtype=bool)]]
+    except (KeyError, TypeError, ValueError):
+        first = []
+    if not first or (first[-1] + window) * s.n != s.N:
+        notes.append("sliding run without a window table that matches its nodes: the task is checked on the nodes of one "
+                     "horizon of its length")
+        return whole
+    from fatigue_pin.drivers.sliding import stitched_nodes
+
+    return lambda at: stitched_nodes(task, at, window, advance, first)
 
 
 def _initial_state(s: Stored, tol: float, notes: list[str]) -> VerifyCheck:

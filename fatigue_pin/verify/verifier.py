@@ -23,19 +23,23 @@ fatigue states in [0, 1]) (:mod:`fatigue_pin.verify.constraints`), the invariant
 
 from __future__ import annotations
 
+from typing import Callable
+
+from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.run import RunResult
 from fatigue_pin.verify.constraints import bound_checks, coupling_check, finite_check, invariant_checks, rhs_check
 from fatigue_pin.verify.dynamics import Dynamics, coarse_grid_note, gap_checks
 from fatigue_pin.verify.dynamics import single_shooting as _single_shooting
 from fatigue_pin.verify.report import DEFAULT_ATOL, DEFAULT_METHOD, DEFAULT_RTOL, ReferenceIntegration, VerifyReport, VerifyTolerances
-from fatigue_pin.verify.stored import rebuild
+from fatigue_pin.verify.stored import Stored, rebuild
 from fatigue_pin.verify.task_checks import task_checks
 
 __all__ = ["verify_run"]
 
 
 def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, single_shooting: bool = False,
-               rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, method: str = DEFAULT_METHOD) -> VerifyReport:
+               rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL, method: str = DEFAULT_METHOD,
+               progress: Progress = None) -> VerifyReport:
     """Check a stored run independently of the package's transcription.
 
     Args:
@@ -48,6 +52,9 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
             too, so loose values loosen its reference.
         atol: absolute tolerance of ``solve_ivp`` (finite, >= 0).
         method: method of ``solve_ivp`` (DOP853 by default).
+        progress: a :class:`~fatigue_pin.core.progress.Reporter` (a bar over the intervals
+            re-integrated: N for the gaps, N more with ``single_shooting``), or a line callback
+            (no bar); default quiet.
 
     Returns:
         A :class:`VerifyReport`; non-finite stored values fail its "finite stored values" line.
@@ -60,11 +67,24 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
     tol = tolerances if tolerances is not None else VerifyTolerances()
     ref = ReferenceIntegration(rtol, atol, method)
     s = rebuild(run)
-    notes = s.notes
     dyn = Dynamics(s)
+    bar = as_reporter(progress).bar(s.N * (2 if single_shooting else 1), f"verify {run.name}", "interval")
+    try:
+        report = _checks(s, run, tol, ref, dyn, bar.update)
+        if single_shooting:
+            _single_shooting(s, dyn, ref, report, bar.update)
+    finally:
+        bar.close()
+    return report
+
+
+def _checks(s: Stored, run: RunResult, tol: VerifyTolerances, ref: ReferenceIntegration, dyn: Dynamics,
+            advance: Callable[[int], None]) -> VerifyReport:
+    """Every check but single shooting; ``advance(n)`` counts the intervals re-integrated."""
+    notes = s.notes
     finite = finite_check(s)
     rhs, rhs_err = rhs_check(s, notes)
-    gaps = gap_checks(s, dyn, tol, ref, notes)
+    gaps = gap_checks(s, dyn, tol, ref, notes, advance)
     if s.horizon == "sliding":
         notes.append("sliding horizon: each window's cyclic end condition is not checked (its end nodes are not kept); "
                      "the stitched trajectory's gaps are, joins included")
@@ -79,7 +99,7 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
     if ";" in inv_sum:
         notes.append(f"invariant sums: {inv_sum}")
     task_values = [c.value for c in task if c.checked]
-    report = VerifyReport(
+    return VerifyReport(
         run=run.name, horizon=s.horizon, n_intervals=s.N, dt=s.dt, substeps=s.substeps, checks=checks,
         gap_q=gaps.gap_q, gap_qdot=gaps.gap_qdot, gap_fatigue=gaps.gap_fatigue,
         task=max(task_values) if task_values else float("nan"), coupling=coupling_value, bound=bound_value,
@@ -87,6 +107,3 @@ def verify_run(run: RunResult, tolerances: VerifyTolerances | None = None, singl
         rk4_residual=gaps.rk4_residual, rk4_truncation=gaps.rk4_truncation, tolerances=tol,
         rtol=ref.rtol, atol=ref.atol, method=ref.method, notes=notes,
     )
-    if single_shooting:
-        _single_shooting(s, dyn, ref, report)
-    return report

@@ -136,7 +136,7 @@ def test_comparison_with_frey_law_avin_is_reported_not_tuned():
 
 
 def test_run_endurance_writes_table_h5_and_figure(tmp_path):
-    tab, comparison, paths = run_endurance(tmp_path / "out", "frey-law-2012/elbow", loads=(0.3, 0.8))
+    tab, comparison, paths = run_endurance(tmp_path / "out", preset="frey-law-2012/elbow", loads=(0.3, 0.8))
     assert paths["png"].stat().st_size > 10_000
     with h5py.File(paths["h5"]) as h5:
         g = h5["endurance/0"]

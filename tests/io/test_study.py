@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+import tomllib
 
 import numpy as np
 import pytest
@@ -55,6 +56,10 @@ EXAMPLE = textwrap.dedent(
 )
 
 
+#: The example as the table tomllib reads.
+EXAMPLE_DICT = tomllib.loads(EXAMPLE)
+
+
 def test_the_documented_example_builds_its_problem(arm26):
     study = Study.from_toml(EXAMPLE)
     problem = study.problem(arm26)
@@ -74,6 +79,28 @@ def test_round_trip_through_toml_keeps_every_value():
     study = Study.from_toml(EXAMPLE)
     again = Study.from_toml(study.to_toml())
     assert again.data == study.data
+
+
+@pytest.mark.parametrize("changes, plain", [
+    ({"fatigue.F": np.float64(0.9)}, {"fatigue.F": 0.9}),
+    ({"fatigue.R": np.float32(0.5)}, {"fatigue.R": 0.5}),
+    ({"horizon.cycles": np.int64(2), "solver.compile": np.bool_(False)}, {"horizon.cycles": 2, "solver.compile": False}),
+    ({"task.q_init": np.array([0.1, 0.25])}, {"task.q_init": [0.1, 0.25]}),
+    ({"task.cycle_duration": np.array(2.0), "task.q_init": (np.float64(0.1), 0.25)}, {"task.cycle_duration": 2.0, "task.q_init": [0.1, 0.25]}),
+])
+def test_numpy_values_enter_a_study_as_plain_numbers(changes, plain):
+    """A study changed with numpy scalars or arrays is the study changed with the same plain
+    values: its TOML reads back to it, and its text (the job id of a sweep) is the same."""
+    from fatigue_pin.sweep.plan import study_id
+
+    study = Study.from_toml(EXAMPLE)
+    changed = study.replace(changes)
+    expected = study.replace(plain)
+    assert Study.from_toml(changed.to_toml()) == changed
+    assert changed == expected and changed.to_toml() == expected.to_toml()
+    assert study_id(changed.to_toml()) == study_id(expected.to_toml())
+    assert "np." not in changed.to_toml() and "array" not in changed.to_toml()
+    assert Study.from_dict({**EXAMPLE_DICT, "task": {**EXAMPLE_DICT["task"], "q_init": np.array([0.1, 0.25])}}) == study.replace({"task.q_init": [0.1, 0.25]})
 
 
 def test_per_half_overrides_and_name_placeholders(arm26):

@@ -412,9 +412,9 @@ base = "base.toml"
 
 def test_slurm_job_script_carries_the_request():
     pytest.importorskip("dask_jobqueue")
-    from fatigue_pin.sweep.cluster import slurm_cluster
+    from fatigue_pin.sweep.cluster import SlurmSettings, slurm_cluster
 
-    cluster = slurm_cluster(queue="short", walltime="00:30:00", cores=4, memory="8GB", host="127.0.0.1")
+    cluster = slurm_cluster(SlurmSettings(queue="short", walltime="00:30:00", cores=4, memory="8GB"), host="127.0.0.1")
     try:
         script = cluster.job_script()
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
@@ -445,7 +445,10 @@ def test_slurm_options_reach_the_cluster(tmp_path, monkeypatch):
     with pytest.raises(Stop):
         sweep_command(path, tmp_path / "out", slurm=True, queue="long", walltime="02:00:00", cores=8, memory="16GB",
                       progress=lambda _: None)
-    assert seen["args"] == ("long", "02:00:00", 8, "16GB", None)
+    assert seen["args"] == (sweep_module.SlurmSettings(queue="long", walltime="02:00:00", cores=8, memory="16GB"),)
+    with pytest.raises(Stop):  # options left out: the defaults of SlurmSettings
+        sweep_command(path, tmp_path / "out", slurm=True, progress=lambda _: None)
+    assert seen["args"] == (sweep_module.SlurmSettings(),)
 
 
 def test_nothing_to_run_needs_no_cluster(tmp_path, thread_client):

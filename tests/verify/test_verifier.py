@@ -134,6 +134,50 @@ def test_single_shooting_drift_is_small_for_a_converged_solution(full_report):
     assert "single shooting: drift q" in table and "single shooting: invariant drift" in table
 
 
+class _RecordingBar:
+    def __init__(self, total):
+        self.total, self.counts, self.closed = total, [], False
+
+    def update(self, n=1, **postfix):
+        self.counts.append((self.counts[-1] if self.counts else 0) + n)
+
+    def close(self):
+        self.closed = True
+
+
+def test_progress_counts_every_interval_up_to_the_total(full_file, full_report, capsys):
+    """verify_run reports its progress through a Reporter's bar: the count grows interval by
+    interval to the total (the N intervals of the gaps, N more of the single shooting); the
+    report is the same as a quiet one's. The command line draws it on standard error, and
+    only on a terminal: not here, so standard error stays empty."""
+    import io
+
+    from fatigue_pin.core.progress import Reporter
+
+    bars = []
+
+    class Recording(Reporter):
+        def bar(self, total, desc, unit="it"):
+            bars.append(_RecordingBar(total))
+            bars[-1].desc, bars[-1].unit = desc, unit
+            return bars[-1]
+
+    path, name = full_file
+    run = read_run(path, name)
+    report = verify_run(run, single_shooting=True, progress=Recording())
+    (bar,) = bars
+    assert bar.total == 2 * 50 and bar.unit == "interval" and name in bar.desc and bar.closed
+    assert bar.counts == list(range(1, bar.total + 1))  # increasing by one interval, up to the total
+    assert report.table() == full_report.table()
+    stream = io.StringIO()  # a real Reporter with bars: tqdm's last state is the total
+    verify_run(run, progress=Reporter(stream=stream, bars=True))
+    assert "50/50" in stream.getvalue()
+    capsys.readouterr()
+    assert main(["verify", str(path)]) == 0
+    captured = capsys.readouterr()
+    assert "PASSED" in captured.out and captured.err == ""
+
+
 def test_a_diverging_single_shooting_is_reported_not_raised(full_file, monkeypatch):
     """When the open-loop integration of the rigid body fails (a long swinging horizon), verify
     reports an infinite drift with a note and still integrates the fatigue states to the end."""
