@@ -11,7 +11,9 @@ a re-plan every 5 intervals (0.1 s). Configurations (changes of the study, as ``
 
 * ``before``: the solver's defaults before issue 23's options (CasADi's automatic Jacobian of
   ABA, OpenBLAS threads as the environment sets them);
-* ``now``: today's defaults (analytical ABA derivatives, one BLAS thread).
+* ``now``: today's defaults (analytical ABA derivatives, one BLAS thread);
+* ``mu_init-1e-2``, ``mu_init-1e-3``: IPOPT's first barrier parameter lowered from 1 (the
+  re-plans start from the previous plan shifted, a guess close to the optimum).
 
 Every run is a child process; the configurations alternate within each repeat; the compile
 cache is built first (not timed). Printed: per configuration the medians over the repeats of the
@@ -35,6 +37,8 @@ STUDY = ROOT / "studies" / "curl_sliding_fatigue_authors-code.toml"
 CONFIGS: dict[str, dict] = {
     "before": {"solver.dynamics_jacobian": "automatic", "solver.blas_threads": 0},
     "now": {},
+    "mu_init-1e-2": {"solver.mu_init": 1e-2},
+    "mu_init-1e-3": {"solver.mu_init": 1e-3},
 }
 LOOP = {"mpc.replan_every": 5, "mpc.estimator": "open-loop", "horizon.max_cycles": 6}
 

@@ -9,29 +9,19 @@
 #include "pinocchio/algorithm/aba-derivatives.hpp"
 
 #include "pinocchio_casadi.hpp"
+#include "pinocchio_casadi_symbols.hpp"
 
 namespace fatigue_pin
 {
   std::string serialized_sx_aba_derivatives(const pinocchio::Model & model)
   {
-    using SX = ::casadi::SX;
-    using ADModel = pinocchio::ModelTpl<SX>;
-    using ADData = ADModel::Data;
-
     const ADModel ad_model = model.cast<SX>();
     ADData ad_data(ad_model);
-
-    const SX q = SX::sym("q", model.nq);
-    const SX v = SX::sym("v", model.nv);
-    const SX tau = SX::sym("tau", model.nv);
-    ADModel::ConfigVectorType q_ad(model.nq);
-    ADModel::TangentVectorType v_ad(model.nv), tau_ad(model.nv);
-    pinocchio::casadi::copy(q, q_ad);
-    pinocchio::casadi::copy(v, v_ad);
-    pinocchio::casadi::copy(tau, tau_ad);
+    const ConfigSymbol q("q", model.nq);
+    const TangentSymbol v("v", model.nv), tau("tau", model.nv);
 
     // ddq and its partial derivatives (Carpentier & Mansard, RSS 2018); Minv = d ddq / d tau.
-    pinocchio::computeABADerivatives(ad_model, ad_data, q_ad, v_ad, tau_ad);
+    pinocchio::computeABADerivatives(ad_model, ad_data, q.eigen, v.eigen, tau.eigen);
     // only the upper triangle of Minv is filled
     ad_data.Minv.template triangularView<Eigen::StrictlyLower>() =
       ad_data.Minv.transpose().template triangularView<Eigen::StrictlyLower>();
@@ -41,7 +31,7 @@ namespace fatigue_pin
     pinocchio::casadi::copy(ad_data.ddq_dv, ddq_dv);
     pinocchio::casadi::copy(ad_data.Minv, minv);
     const ::casadi::Function f(
-      "aba_derivatives", {q, v, tau}, {ddq, ddq_dq, ddq_dv, minv}, {"q", "v", "tau"},
+      "aba_derivatives", {q.sx, v.sx, tau.sx}, {ddq, ddq_dq, ddq_dv, minv}, {"q", "v", "tau"},
       {"ddq", "ddq_dq", "ddq_dv", "Minv"});
     return f.serialize();
   }

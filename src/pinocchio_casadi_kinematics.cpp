@@ -13,16 +13,13 @@
 #include "pinocchio/algorithm/kinematics.hpp"
 
 #include "pinocchio_casadi.hpp"
+#include "pinocchio_casadi_symbols.hpp"
 
 namespace fatigue_pin
 {
   std::tuple<std::string, std::string, std::string>
   serialized_sx_frame_kinematics(const pinocchio::Model & model, std::size_t frame_id)
   {
-    using SX = ::casadi::SX;
-    using ADModel = pinocchio::ModelTpl<SX>;
-    using ADData = ADModel::Data;
-
     if (frame_id >= model.frames.size())
       throw std::out_of_range(
         "frame id " + std::to_string(frame_id) + " is not a frame of the model (it has "
@@ -32,15 +29,11 @@ namespace fatigue_pin
     ADData ad_data(ad_model);
     const std::string & name = model.frames[frame_id].name;
 
-    const SX q = SX::sym("q", model.nq);
-    const SX v = SX::sym("v", model.nv);
-    ADModel::ConfigVectorType q_ad(model.nq);
-    ADModel::TangentVectorType v_ad(model.nv);
-    pinocchio::casadi::copy(q, q_ad);
-    pinocchio::casadi::copy(v, v_ad);
+    const ConfigSymbol q("q", model.nq);
+    const TangentSymbol v("v", model.nv);
 
     // Placement of the frame in the world: joint placements, then the frame's own placement.
-    pinocchio::forwardKinematics(ad_model, ad_data, q_ad, v_ad);
+    pinocchio::forwardKinematics(ad_model, ad_data, q.eigen, v.eigen);
     const auto & oMf = pinocchio::updateFramePlacement(ad_model, ad_data, frame_id);
     SX p(3, 1), R(3, 3);
     pinocchio::casadi::copy(oMf.translation(), p);
@@ -53,11 +46,11 @@ namespace fatigue_pin
     pinocchio::casadi::copy(vel.linear(), pdot);
 
     const ::casadi::Function position(
-      name + "_position", {q}, {p}, {"q"}, {"p"});
+      name + "_position", {q.sx}, {p}, {"q"}, {"p"});
     const ::casadi::Function rotation(
-      name + "_rotation", {q}, {R}, {"q"}, {"R"});
+      name + "_rotation", {q.sx}, {R}, {"q"}, {"R"});
     const ::casadi::Function velocity(
-      name + "_velocity", {q, v}, {pdot}, {"q", "v"}, {"pdot"});
+      name + "_velocity", {q.sx, v.sx}, {pdot}, {"q", "v"}, {"pdot"});
     return {position.serialize(), rotation.serialize(), velocity.serialize()};
   }
 } // namespace fatigue_pin

@@ -117,8 +117,12 @@ def _cmd_max_cycles(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from fatigue_pin.cli.mpc import run_closed_loop_study
+    from fatigue_pin.io.mpc_study import is_closed_loop
     from fatigue_pin.io.study import Study, parse_changes
 
+    if is_closed_loop(args.study):  # [plant] / [mpc] tables: the closed loop, as `fatigue-pin mpc`
+        return run_closed_loop_study(args)
     study = Study.from_file(args.study, args.run)
     if args.set:
         study = study.replace(parse_changes(args.set))
@@ -267,7 +271,8 @@ def _add_model_commands(sub: Any) -> None:
 
 def _add_study_commands(sub: Any) -> None:
     """run, rerun."""
-    p = sub.add_parser("run", help="run a study file (TOML): full horizon, sliding horizon or maximum-repetitions search")
+    p = sub.add_parser("run", help="run a study file (TOML): full horizon, sliding horizon or maximum-repetitions search; "
+                                   "a study with [plant] or [mpc] tables runs as a closed loop (as `fatigue-pin mpc`)")
     p.add_argument("study", type=Path, help="study file (.toml), or an HDF5 result file whose run stores its study")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="change a key of the study, e.g. --set fatigue.S=0 --set horizon.max_cycles=5 (repeatable)")

@@ -11,7 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
-__all__ = ["register"]
+__all__ = ["register", "run_closed_loop_study"]
 
 
 def report_path(out: Path) -> Path:
@@ -19,7 +19,9 @@ def report_path(out: Path) -> Path:
     return out.with_name(f"{out.stem}_report.md")
 
 
-def _cmd_mpc(args: argparse.Namespace) -> int:
+def run_closed_loop_study(args: argparse.Namespace) -> int:
+    """``fatigue-pin mpc`` (and ``fatigue-pin run`` of a closed-loop study): the closed loop, its
+    report beside the result file, one line of outcome."""
     from fatigue_pin.core.progress import Reporter
     from fatigue_pin.drivers.mpc_run import estimation_error, report
     from fatigue_pin.io.mpc_study import MpcStudy, run_mpc
@@ -51,4 +53,4 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", action="store_true", help="continue the run stored in --out from its last re-plan")
     p.add_argument("--name", default=None, help="run name in the file (default: mpc/<study name>)")
     p.add_argument("--cache", type=Path, default=None, help="folder of compiled code (default ~/.cache/fatigue_pin)")
-    p.set_defaults(func=_cmd_mpc)
+    p.set_defaults(func=run_closed_loop_study)

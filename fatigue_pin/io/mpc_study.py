@@ -47,6 +47,20 @@ PLANT_OWN = ("noise", "disturbance", "integrator", "substeps", "rtol", "atol")  
 MPC_KEYS = ("plant", "mpc", "seed")
 
 
+def is_closed_loop(path: str | Path) -> bool:
+    """Whether the TOML study file ``path`` is a closed-loop study (has a ``[plant]`` or ``[mpc]``
+    table or a ``seed``). False for anything else, including files that are not TOML (their
+    reader says what is wrong)."""
+    path = Path(path)
+    if path.suffix.lower() != ".toml" or not path.is_file():
+        return False
+    try:
+        data = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
+        return False
+    return any(key in data for key in MPC_KEYS)
+
+
 def _merge(base: dict[str, Any], changes: dict[str, Any]) -> dict[str, Any]:
     out = copy.deepcopy(base)
     for key, value in changes.items():

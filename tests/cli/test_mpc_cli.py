@@ -71,3 +71,15 @@ def test_bad_input_is_one_line_with_exit_code_2(cli_run, args, message, capsys, 
     err = capsys.readouterr().err.strip()
     assert code == 2 and err.startswith(f"fatigue-pin: error: {message}") and "\n" not in err
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_run_hands_a_closed_loop_study_to_the_closed_loop(cli_run, tmp_path):
+    """``fatigue-pin run`` of a study with [plant] / [mpc] tables runs the closed loop: the same
+    run, bit for bit, as ``fatigue-pin mpc`` with the same changes."""
+    _, study, out, _ = cli_run
+    again = tmp_path / "again.h5"
+    assert main(["run", str(study), "--out", str(again), "--set", "mpc.end=receding"]) == 0
+    mine, theirs = read_run(again), read_run(out)
+    assert mine.name == theirs.name and mine.attrs["repetitions"] == theirs.attrs["repetitions"]
+    assert np.array_equal(mine.q, theirs.q) and np.array_equal(mine.tau_plus, theirs.tau_plus)
+    assert (tmp_path / "again_report.md").is_file() and MpcStudy.from_toml(mine.study).mpc.end == "receding"
