@@ -50,6 +50,7 @@ CASES = {
 }
 #: configuration name -> study changes (dotted key -> value)
 CONFIGS: dict[str, dict] = {
+    "before": {"solver.dynamics_jacobian": "automatic", "solver.blas_threads": 0},  # the default before issue 23's options
     "exact": {},
     "one-step": {"solver.hessian": "one-step"},
     "gauss-newton": {"solver.hessian": "gauss-newton"},
@@ -60,7 +61,8 @@ CONFIGS: dict[str, dict] = {
     "euler-step": {"solver.hessian": "euler-step"},
     "analytical-one-step": {"solver.dynamics_jacobian": "analytical", "solver.hessian": "one-step"},
     "analytical-euler-step": {"solver.dynamics_jacobian": "analytical", "solver.hessian": "euler-step"},
-    "blas2": {"solver.blas_threads": 2},
+    "blas0": {"solver.blas_threads": 0},
+    "automatic": {"solver.dynamics_jacobian": "automatic"},
     "one-step-warm": {"solver.hessian": "one-step", "horizon.warm_start": True},
 }
 

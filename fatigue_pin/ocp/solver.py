@@ -155,7 +155,7 @@ class SolverOptions:
             CasADi's automatic differentiation through ABA. The same values to rounding. Models
             with nq != nv (continuous joints) always use ``automatic``.
         blas_threads: threads of the BLAS under IPOPT's linear solver (the OpenBLAS that ships
-            with CasADi, :func:`limit_blas_threads`); ``None`` leaves it as it is (the
+            with CasADi, :func:`limit_blas_threads`); 0 leaves it as it is (the
             ``OPENBLAS_NUM_THREADS`` environment variable, else every core). 1 (default): the
             KKT systems of these problems are too small for threaded BLAS, whose idle threads
             spin against the ``thread`` maps of the interval functions: the UR5 window of
@@ -181,8 +181,8 @@ class SolverOptions:
     accept_acceptable: bool = setting(False, "true or false", is_bool)
     derivative_blocks: bool | None = setting(None, "true or false (none: in library mode)", is_bool)
     hessian: str = setting("exact", "'exact', 'one-step', 'euler-step' or 'gauss-newton'", lambda v: v in HESSIANS)
-    dynamics_jacobian: str = setting("automatic", "'analytical' or 'automatic'", lambda v: v in DYNAMICS_JACOBIANS)
-    blas_threads: int | None = setting(1, "a number of threads >= 1", lambda v: is_int(v) and v >= 1)
+    dynamics_jacobian: str = setting("analytical", "'analytical' or 'automatic'", lambda v: v in DYNAMICS_JACOBIANS)
+    blas_threads: int = setting(1, "a number of threads >= 1, or 0 (as the environment sets it)", lambda v: is_int(v) and v >= 0)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -458,7 +458,7 @@ class NlpSolver:
             if warm_start:
                 opts["ipopt"].update(WARM_START_OPTIONS)
             self._solvers[key] = ca.nlpsol(self._name, "ipopt", self._source, {**opts, **self.derivatives})
-            if self.options.blas_threads is not None:
+            if self.options.blas_threads:
                 limit_blas_threads(self.options.blas_threads)
         return self._solvers[key]
 

@@ -114,7 +114,7 @@ def casadi_aba_derivatives(model: pin.Model) -> ca.Function | None:
     try:
         import pinocchio.casadi as cpin
     except ImportError:
-        ext = _extension()
+        ext = compiled_extension("aba_derivatives_from_string")
         return ca.Function.deserialize(ext.aba_derivatives_from_string(model.saveToString()))
     cmodel = cpin.Model(model)
     cdata = cmodel.createData()
@@ -146,13 +146,18 @@ def _extension_dynamics(model: pin.Model) -> tuple[ca.Function, ca.Function]:
     The model crosses to C++ as Pinocchio's text serialization, so everything in it (inertias,
     placements, joint types, gravity) is reproduced exactly; the functions come back serialized.
     """
-    ext = _extension()
+    ext = compiled_extension("dynamics_from_string")
     aba_text, rnea_text = ext.dynamics_from_string(model.saveToString())
     return ca.Function.deserialize(aba_text), ca.Function.deserialize(rnea_text)
 
 
-def _extension():
-    """The compiled extension, checked against the running casadi and Pinocchio."""
+def compiled_extension(function: str):
+    """The compiled extension ``fatigue_pin._pinocchio_casadi``, checked against the running
+    casadi and Pinocchio and for ``function`` (an extension built before it was added lacks it).
+
+    Raises:
+        ModelError: missing, unloadable, built against other versions, or without ``function``.
+    """
     # casadi and pinocchio are imported above this point, which also loads libcasadi and
     # libboost_serialization for the extension if its RPATH cannot find them.
     try:
@@ -172,4 +177,7 @@ def _extension():
                 f"fatigue_pin._pinocchio_casadi was built against {name} {built} but {name} "
                 f"{running} is imported; reinstall fatigue_pin with pip to rebuild it"
             )
+    if not hasattr(ext, function):
+        raise ModelError(f"the compiled extension fatigue_pin._pinocchio_casadi predates {function}; "
+                         "reinstall fatigue_pin with pip to rebuild it")
     return ext

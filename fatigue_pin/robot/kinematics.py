@@ -28,6 +28,7 @@ import numpy as np
 import pinocchio as pin
 
 from fatigue_pin.core.errors import ModelError
+from fatigue_pin.robot.dynamics import compiled_extension
 
 
 @dataclass(frozen=True)
@@ -82,18 +83,7 @@ def _pinocchio_casadi_kinematics(cpin, model: pin.Model, fid: int) -> tuple[ca.F
 
 def _extension_kinematics(model: pin.Model, fid: int) -> tuple[ca.Function, ca.Function, ca.Function]:
     """The three functions through the compiled extension (PyPI wheels)."""
-    try:
-        from fatigue_pin import _pinocchio_casadi as ext
-    except ImportError as exc:
-        raise ModelError(f"the compiled extension fatigue_pin._pinocchio_casadi cannot be loaded ({exc}); "
-                         "reinstall fatigue_pin with pip so that it is built") from exc
-    if not hasattr(ext, "frame_kinematics_from_string"):
-        raise ModelError("the compiled extension fatigue_pin._pinocchio_casadi predates frame kinematics "
-                         "(no frame_kinematics_from_string); reinstall fatigue_pin with pip to rebuild it")
-    for what, built, running in (("casadi", ext.casadi_version, ca.__version__), ("pinocchio", ext.pinocchio_version, pin.__version__)):
-        if built != running:
-            raise ModelError(f"fatigue_pin._pinocchio_casadi was built against {what} {built} but {what} {running} "
-                             "is imported; reinstall fatigue_pin with pip to rebuild it")
+    ext = compiled_extension("frame_kinematics_from_string")
     texts = ext.frame_kinematics_from_string(model.saveToString(), fid)
     return tuple(ca.Function.deserialize(t) for t in texts)  # type: ignore[return-value]
 

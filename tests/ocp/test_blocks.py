@@ -49,10 +49,12 @@ def _compare(ocp: Ocp, seed: int = 0) -> None:
         g, jac = derivatives["jac_g"](x, p)
         g0, jac0 = jac_ref(x, p)
         hess, hess0 = derivatives["hess_lag"](x, p, lam_f, lam_g), hess_ref(x, p, lam_f, lam_g)
-        assert np.allclose(np.asarray(g), np.asarray(g0), rtol=1e-12, atol=1e-12)
+        # (the analytical Jacobian block computes ddq by Pinocchio's derivative pass: other
+        # operations than ABA's, the same values to rounding)
+        assert np.abs(np.asarray(g) - np.asarray(g0)).max() <= 1e-10 * max(1.0, float(ca.norm_inf(g0)))
         for mine, theirs in ((jac, jac0), (hess, hess0)):
             scale = max(1.0, float(ca.norm_inf(theirs)))
-            assert float(ca.norm_inf(ca.densify(mine) - ca.densify(theirs))) <= 1e-11 * scale
+            assert float(ca.norm_inf(ca.densify(mine) - ca.densify(theirs))) <= 1e-10 * scale
         assert hess.sparsity().is_triu()  # the upper triangle, as IPOPT reads it
 
 

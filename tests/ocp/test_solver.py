@@ -121,3 +121,32 @@ def test_a_linear_solver_that_cannot_be_loaded_is_an_error_not_a_failed_solve(li
         x = ca.SX.sym("x")
         solver = ca.nlpsol("s", "ipopt", {"x": x, "f": (x - 1) ** 2}, SolverOptions(linear_solver=linear_solver).ipopt_options())
         assert float(solver(x0=0.0)["x"]) == pytest.approx(1.0) and solver.stats()["success"]
+
+
+def test_blas_threads_set_the_openblas_that_mumps_uses():
+    """``blas_threads``: the thread count of the OpenBLAS copy IPOPT's MUMPS loaded (read back
+    from that copy); 0 leaves it alone; a negative count is refused."""
+    import ctypes
+
+    import casadi as ca
+
+    from fatigue_pin.ocp.solver import NlpSolver
+
+    opti = ca.Opti()
+    x = opti.variable(2)
+    opti.minimize(ca.sumsqr(x - 1))
+    opti.subject_to(x[0] ** 2 + x[1] == 1)
+    opti.subject_to(opti.bounded(-5, x, 5))
+
+    def threads() -> int:
+        paths = {line.split()[-1] for line in open("/proc/self/maps") if "libcasadi-tp-openblas" in line}
+        assert len(paths) == 1, paths  # the one copy MUMPS uses, never a second one of ours
+        return ctypes.CDLL(paths.pop()).openblas_get_num_threads()
+
+    for n in (2, 1):
+        NlpSolver(opti, SolverOptions(compile=False, blas_threads=n))
+        assert threads() == n
+    NlpSolver(opti, SolverOptions(compile=False, blas_threads=0))
+    assert threads() == 1
+    with pytest.raises(ParameterError, match="blas_threads = -1"):
+        SolverOptions(blas_threads=-1)

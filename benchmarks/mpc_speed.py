@@ -1,0 +1,102 @@
+"""Closed-loop speed (issue 24): re-planning every 0.1 s on arm26, real-time factor per re-plan.
+
+Usage::
+
+    python benchmarks/mpc_speed.py [--replans 20] [--repeats 2] [--configs before,now] [--cache DIR]
+
+The paper's sliding study, authors-code, cost fatigue, S = 10
+(studies/curl_sliding_fatigue_authors-code.toml: 50 intervals of 0.02 s per cycle, windows of 3
+cycles) as a closed loop with the plant equal to the model, no noise, the open-loop estimator and
+a re-plan every 5 intervals (0.1 s). Configurations (changes of the study, as ``--set``):
+
+* ``before``: the solver's defaults before issue 23's options (CasADi's automatic Jacobian of
+  ABA, OpenBLAS threads as the environment sets them);
+* ``now``: today's defaults (analytical ABA derivatives, one BLAS thread).
+
+Every run is a child process; the configurations alternate within each repeat; the compile
+cache is built first (not timed). Printed: per configuration the medians over the repeats of the
+median and largest real-time factor (s of solving per s of motion advanced) of the re-plans, and
+of IPOPT's iterations per re-plan.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "studies" / "curl_sliding_fatigue_authors-code.toml"
+CONFIGS: dict[str, dict] = {
+    "before": {"solver.dynamics_jacobian": "automatic", "solver.blas_threads": 0},
+    "now": {},
+}
+LOOP = {"mpc.replan_every": 5, "mpc.estimator": "open-loop", "horizon.max_cycles": 6}
+
+
+def child(config: str, replans: int, cache: str, out: str) -> None:
+    """One closed-loop run of ``replans`` re-plans; writes their records as JSON to ``out``."""
+    import numpy as np
+
+    from fatigue_pin.io.mpc_study import MpcStudy, run_mpc
+
+    study = MpcStudy.from_file(STUDY, {**LOOP, **CONFIGS[config]})
+    run = run_mpc(study, None, cache_dir=cache, stop_after=replans)
+    rec = run.extras["replans"]
+    Path(out).write_text(json.dumps({name: np.asarray(rec[name]).tolist() for name in ("real_time_factor", "iterations",
+                                                                                        "converged", "wall_time_s")}))
+
+
+def spawn(config: str, replans: int, cache: str, out: str) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.run([sys.executable, __file__, "--child", config, str(replans), cache, out], env=env,
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        print(f"  {config}: child failed:\n{proc.stderr[-2000:]}", flush=True)
+        return {}
+    return json.loads(Path(out).read_text())
+
+
+def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--child":
+        child(sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5])
+        return
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--replans", type=int, default=20)
+    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--configs", default="before,now")
+    parser.add_argument("--cache", default=None, help="compile cache (default: a temporary folder)")
+    args = parser.parse_args()
+    configs = args.configs.split(",")
+    with tempfile.TemporaryDirectory() as tmpname:
+        cache = args.cache or str(Path(tmpname) / "cache")
+        print(f"load {os.getloadavg()}, cache {cache}", flush=True)
+        for config in configs:  # build the caches (one re-plan), untimed
+            spawn(config, 1, cache, str(Path(tmpname) / "build.json"))
+        runs: dict[str, list[dict]] = {c: [] for c in configs}
+        for rep in range(args.repeats):
+            for config in configs:
+                r = spawn(config, args.replans, cache, str(Path(tmpname) / f"{config}_{rep}.json"))
+                if r:
+                    runs[config].append(r)
+                    print(f"  repeat {rep} {config}: RTF median {statistics.median(r['real_time_factor']):.2f}, max "
+                          f"{max(r['real_time_factor']):.2f}, iterations {r['iterations']}, load {os.getloadavg()[0]:.2f}", flush=True)
+        print()
+        print("| configuration | re-plans | converged | real-time factor median | real-time factor max | iterations median |")
+        print("|---|---|---|---|---|---|")
+        for config, rs in runs.items():
+            if not rs:
+                continue
+            med = lambda f: statistics.median(f(r) for r in rs)  # noqa: E731
+            print(f"| {config} | {len(rs[0]['iterations'])} | {sum(map(bool, rs[0]['converged']))} | "
+                  f"{med(lambda r: statistics.median(r['real_time_factor'])):.2f} | {med(lambda r: max(r['real_time_factor'])):.2f} | "
+                  f"{med(lambda r: statistics.median(r['iterations'])):.0f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
