@@ -302,7 +302,7 @@ class ClosedLoop:
     def replan(self, state: LoopState, estimator) -> Any:
         """Correct the estimate at the current node and solve the window from it; update
         ``state`` (its table, parameters, plan and ``done``). Returns the solution (None when the
-        measured state is outside the model's bounds, so no window can start there)."""
+        window's bounds are empty, so no window can be posed: status ``Plant_Outside_Bounds``)."""
         k = state.node
         m = np.clip(estimator.correct(k, state.history), 0.0, 1.0)
         state.history.m[-1] = m
@@ -318,7 +318,7 @@ class ClosedLoop:
         limit = iteration_limit([int(r[5]) for r in state.replans if r[4]], self.sliding, self.solver.max_iter)
         x_end = self.end_reference(state, x_init)
         lo, hi = ocp.state_bounds(x_init, x_end)
-        if np.any(lo > hi):  # the plant left the model's bounds: no window can start there
+        if np.any(lo > hi):  # an end box outside the model's bounds: no window can be posed
             sol = None
             status, success, iterations, wall, objective = "Plant_Outside_Bounds", False, 0, 0.0, math.nan
         else:
