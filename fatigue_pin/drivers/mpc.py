@@ -118,7 +118,7 @@ def _structure(problem: Problem) -> tuple:
 def phase_shifted(problem: Problem, shift: int) -> Problem:
     """The problem whose horizon starts ``shift`` intervals into the cycle: every task item at a
     phase ``at`` moves to ``at - shift / n`` (mod 1), and the task's ``q_init`` (the start of a
-    cycle) is dropped: a shifted window starts from the state it is given."""
+    cycle) is dropped: a shifted window starts from the state it is given (``Task.given_start``)."""
     task = problem.task
     n = task.intervals_per_cycle
     shift %= n
@@ -132,8 +132,9 @@ def phase_shifted(problem: Problem, shift: int) -> Problem:
         else:
             items.append(dataclasses.replace(item, at=((int(round(at * n)) - shift) % n) / n))
     # q_init is the start of the cycle, not of a shifted window (every window gets its measured
-    # state as x_init): dropped, so that it is not checked against the shifted phase-0 targets
-    return dataclasses.replace(problem, task=dataclasses.replace(task, items=tuple(items), q_init=None))
+    # state as x_init): dropped, and no default posture (every joint at 0) is checked in its
+    # place against the shifted phase-0 targets and the planes (Task.given_start)
+    return dataclasses.replace(problem, task=dataclasses.replace(task, items=tuple(items), q_init=None, given_start=True))
 
 
 def task_errors(problem: Problem, x: np.ndarray, n_cycles: int) -> np.ndarray:
@@ -282,10 +283,26 @@ class ClosedLoop:
                 out[rest] -= shift
         return out
 
+    def end_reference(self, state: LoopState, x_init: np.ndarray) -> np.ndarray:
+        """The reference of the window's end box (q, qdot at its last node within ``end_tolerance``
+        of the reference's, :meth:`Ocp.state_bounds`), shape (nx,): the state the plan in force
+        predicted for the current node (``state.prediction[-1]``), a state on the planned
+        periodic motion at the window's phase (the window ends K whole cycles later, at the same
+        phase); before the first plan, ``x_init``.
+
+        Not the measured start: a plant off its plan (a heavier payload, noise) would have every
+        window end as far off, and where the window's last node carries a target (a window
+        starting at a target's phase) that end box and the target can exclude each other (the UR5
+        study, docs/mpc.md). With the plant equal to the model and no noise the prediction is the
+        start state, as in the sliding horizon."""
+        if state.plan is None:
+            return x_init
+        return np.asarray(state.prediction[-1], dtype=float)
+
     def replan(self, state: LoopState, estimator) -> Any:
         """Correct the estimate at the current node and solve the window from it; update
         ``state`` (its table, parameters, plan and ``done``). Returns the solution (None when the
-        measured state is outside the model's bounds, so no window can start there)."""
+        window's bounds are empty, so no window can be posed: status ``Plant_Outside_Bounds``)."""
         k = state.node
         m = np.clip(estimator.correct(k, state.history), 0.0, 1.0)
         state.history.m[-1] = m
@@ -299,12 +316,13 @@ class ClosedLoop:
             guess = shifted_window_guess(ocp, x_init, x_prev, u_prev, 0, self.sliding.guess_fatigue == "copy",
                                          intervals=k - start, fatigue=estimator.params)
         limit = iteration_limit([int(r[5]) for r in state.replans if r[4]], self.sliding, self.solver.max_iter)
-        lo, hi = ocp.state_bounds(x_init, x_init)
-        if np.any(lo > hi):  # the plant left the model's bounds: no window can start there
+        x_end = self.end_reference(state, x_init)
+        lo, hi = ocp.state_bounds(x_init, x_end)
+        if np.any(lo > hi):  # an end box outside the model's bounds: no window can be posed
             sol = None
             status, success, iterations, wall, objective = "Plant_Outside_Bounds", False, 0, 0.0, math.nan
         else:
-            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, fatigue=estimator.params)
+            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params)
             status, success, iterations, wall, objective = sol.status, sol.success, sol.iterations, sol.wall_time_s, sol.objective
         horizon_s = self.replan_every * self.problem.task.dt
         state.replans.append((len(state.replans), k, k % self.n, status.encode()[:40], success, iterations,

@@ -25,7 +25,7 @@ A target at phase 0 also applies to the end of the last cycle (node N, or N + ``
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Sequence, Union
 
 import casadi as ca
@@ -352,6 +352,12 @@ class Task:
             within their tolerances (node 0 is theirs too; :meth:`check_start`).
         final_node_offset: targets at phase 0 apply to the end of the last cycle at node
             N + offset (0, or -1 to impose it one node before the end).
+        given_start: every solve gives the start state (a closed loop's window that starts
+            mid-cycle from the measured state, :func:`fatigue_pin.drivers.mpc.phase_shifted`):
+            the task has no start posture of its own (``q_init`` must be None), and
+            :meth:`check` checks none against the phase-0 items and the planes (node 0 is the
+            given state, which wins over them: :meth:`Ocp.state_bounds`,
+            :meth:`Ocp.parameter_vector`). Not a study key.
     """
 
     cycle_duration: float
@@ -359,6 +365,7 @@ class Task:
     items: tuple[TaskItem, ...] = ()
     q_init: tuple[float, ...] | None = None
     final_node_offset: int = 0
+    given_start: bool = field(default=False, metadata={"study": False})
 
     def __post_init__(self) -> None:
         d = _finite("Task", "cycle_duration", self.cycle_duration, "a duration in seconds > 0")
@@ -384,6 +391,10 @@ class Task:
         self._check_one_target_per_node()
         if self.final_node_offset not in (0, -1):
             raise TaskError(f"Task.final_node_offset = {self.final_node_offset!r}: expected 0 or -1")
+        if not isinstance(self.given_start, (bool, np.bool_)):
+            raise TaskError(f"Task.given_start = {self.given_start!r}: expected true or false")
+        if self.given_start and self.q_init is not None:
+            raise TaskError("Task.q_init with given_start: expected no q_init (every solve gives the start state)")
         if self.q_init is not None:
             q = tuple(_finite("Task", "q_init", v, "a list of finite joint positions") for v in np.ravel(self.q_init))
             object.__setattr__(self, "q_init", q)
@@ -488,12 +499,13 @@ class Task:
                     raise TaskError(f"task range {list(values)} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
             elif isinstance(item, StateConstraint):
                 pass  # checked against the layout when the OCP is built
-        q = self.initial_configuration(model)
-        bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
-        if bad:
-            raise TaskError(f"task initial configuration q_init = {q.tolist()} is outside the range of joints {bad}")
-        self.check_start(model, q)
-        for item in self.items:  # frame targets, planes, orientations: unknown frames, reach
+        q = None if self.given_start else self.initial_configuration(model)  # given_start: no posture to check
+        if q is not None:
+            bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
+            if bad:
+                raise TaskError(f"task initial configuration q_init = {q.tolist()} is outside the range of joints {bad}")
+            self.check_start(model, q)
+        for item in self.items:  # frame targets, planes, orientations: unknown frames, reach (and the start posture)
             if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and callable(getattr(item, "check", None)):
                 item.check(model, q)
 

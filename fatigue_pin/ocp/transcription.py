@@ -12,6 +12,7 @@ intervals_per_cycle intervals of length dt), :class:`Ocp` builds::
                                                   their nodes, joint ranges, and (sliding
                                                   windows) the cyclic end box at node N
     lower <= h(x_k) <= upper                       state constraints of the task at their nodes
+                                                  (at node 0 widened to h(x_init))
     u in the halves' torque ranges
     J = sum_k dt * sum_i w_i L_i(x_k, u_k, u_{k-1})
 
@@ -454,9 +455,24 @@ class Ocp:
         if "start_targets_lb" in self.params.names:
             values["start_targets_lb"], values["start_targets_ub"] = self._start_target_rows(x_init)
         for sc, nodes in self._state_constraints:
-            values[f"{sc.name}_lb"] = np.tile(np.asarray(sc.lower)[:, None], (1, len(nodes)))
-            values[f"{sc.name}_ub"] = np.tile(np.asarray(sc.upper)[:, None], (1, len(nodes)))
+            values[f"{sc.name}_lb"], values[f"{sc.name}_ub"] = self._state_constraint_bounds(sc, nodes, x_init)
         return self.params.vector(values)
+
+    @staticmethod
+    def _state_constraint_bounds(sc, nodes: list[int], x_init: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of a task state constraint's rows (frame targets, planes, orientations,
+        :class:`~fatigue_pin.ocp.task.StateConstraint`), each (rows, len(nodes)). At node 0 they
+        are widened to the start state's value h(x_init) where it lies outside them: node 0 is
+        fixed to ``x_init`` (:meth:`state_bounds`), so a row there decides nothing and only makes
+        the NLP infeasible when the start misses it (a closed loop's measured state below a
+        plane or off a frame target; docs/mpc.md). A start that meets the row keeps its bounds."""
+        lower = np.tile(np.asarray(sc.lower, dtype=float).reshape(-1, 1), (1, len(nodes)))
+        upper = np.tile(np.asarray(sc.upper, dtype=float).reshape(-1, 1), (1, len(nodes)))
+        if nodes and nodes[0] == 0:
+            value = np.asarray(sc.expression(x_init), dtype=float).reshape(-1)
+            lower[:, 0] = np.minimum(lower[:, 0], value)
+            upper[:, 0] = np.maximum(upper[:, 0], value)
+        return lower, upper
 
     def _start_target_rows(self, x_init: np.ndarray) -> tuple[list[float], list[float]]:
         """Bounds of the node-0 target rows (``target_rows``): the targets, widened to the start

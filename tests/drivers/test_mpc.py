@@ -131,6 +131,63 @@ def test_phase_shifted_task():
     assert phase_shifted(problem, 10) is problem
 
 
+def test_a_phase_shifted_task_has_no_start_posture():
+    """The UR5 study's window a quarter cycle in could not be built: the shifted task had dropped
+    q_init, and its default posture (every joint at 0) was checked against the plane (TaskError).
+    A shifted window's task has no start posture of its own (Task.given_start)."""
+    import dataclasses
+
+    from fatigue_pin.ocp.task import FramePlane
+    from fatigue_pin.robot.kinematics import frame_placement
+
+    problem = small_curl("sliding").problem()
+    q_init = np.asarray(problem.task.q_init)
+    z = frame_placement(problem.model.pin_model, "dumbbell", q_init).translation[2]  # every joint at 0: 16 mm lower
+    plane = FramePlane("dumbbell", (0.0, 0.0, 1.0), z - 0.005)
+    problem = dataclasses.replace(problem, task=dataclasses.replace(problem.task, items=problem.task.items + (plane,)))
+    shifted = phase_shifted(problem, 3)  # no target at its phase 0: every joint at 0 was the posture checked
+    assert shifted.task.given_start and shifted.task.q_init is None
+    assert sorted(t.at for t in shifted.task.joint_targets) == [0.2, 0.7]
+    assert not problem.task.given_start and phase_shifted(problem, 0) is problem
+
+
+def test_a_window_ends_on_the_plan_not_at_the_measured_start():
+    """Re-planning half a cycle in, at the phase of a frame target (the curl's 150 deg target as a
+    5 mm ball of the dumbbell), with the plant pushed off its plan (-0.3 N m on the elbow): the
+    window's last node is a target node, and its end box (q, qdot within 1 % of their range) was
+    centred on the measured start, 18 mm off the target: out of reach there (IPOPT:
+    Infeasible_Problem_Detected, as the UR5 study's re-plan at its place target). The box is
+    centred on the state the plan predicted for the node (ClosedLoop.end_reference)."""
+    import dataclasses
+
+    from fatigue_pin.ocp.task import FrameTarget
+    from fatigue_pin.robot.kinematics import frame_placement
+
+    study = small_curl("sliding")
+    problem = study.problem()
+    pm = problem.model.pin_model
+    low, high = problem.task.joint_targets
+    target = FrameTarget("dumbbell", tuple(frame_placement(pm, "dumbbell", np.array([0.07, high.value])).translation), 0.5, 0.005)
+    problem = dataclasses.replace(problem, task=dataclasses.replace(problem.task, items=(low, target)))
+    loop = ClosedLoop(problem, None, SlidingSettings(window=3, advance=1, max_cycles=4), MpcSettings(replan_every=5, end="receding"),
+                      PlantSettings(disturbance=PlantDisturbance(constant=(0.0, -0.3))), study.transcription(), study.solver())
+    state = loop.run(stop_after=1)
+    assert state.node == 5
+
+    def miss(x):
+        return target.distance(frame_placement(pm, "dumbbell", x[:2]).translation)
+
+    assert miss(state.y[-1]) > 0.015 and miss(state.prediction[-1]) < 1e-4
+    predicted = state.prediction[-1]
+    state = loop.run(state, stop_after=1)
+    assert [(int(r[1]), bool(r[4])) for r in state.replans] == [(0, True), (5, True)], state.replans
+    np.testing.assert_array_equal(loop.end_reference(state, state.x[5]), state.prediction[-1])  # the plan in force
+    x_plan = state.plan[0]
+    assert max(miss(x_plan[node]) for node in (10, 20, 30)) < 1e-4  # the target at the window's phase 0
+    span = (problem.model.q_upper - problem.model.q_lower)
+    assert np.all(np.abs(x_plan[30, :2] - predicted[:2]) <= 0.01 * span + 1e-9)
+
+
 def test_task_errors_count_both_ends_of_a_cycle():
     problem = small_curl("sliding").problem()
     low, high = (t.value for t in problem.task.joint_targets)

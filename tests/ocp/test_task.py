@@ -139,3 +139,19 @@ def test_horizon_size_is_bounded_before_anything_is_built():
             check_horizon(task, bad)
     with pytest.raises(TaskError, match=r"intervals_per_cycle = 1000001: expected an integer in \[1, 1000000\]"):
         Task(1.0, MAX_INTERVALS + 1)
+
+
+def test_a_given_start_has_no_start_posture_to_check(arm26):
+    """A task whose every solve gives the start state (``given_start``: a closed loop's window that
+    starts mid-cycle) has no start posture: the default one (every joint at 0, here below the
+    plane) is not checked, as it is otherwise; its frames still are, and a q_init is refused."""
+    from fatigue_pin.ocp.task import FramePlane
+
+    items = (JointTarget("elbow", 2.6, 0.5), FramePlane("dumbbell", (0.0, 0.0, 1.0), -0.57))  # every joint at 0: z = -0.577 m
+    with pytest.raises(TaskError, match="below the plane"):
+        Task(1.0, 10, items).check(arm26)
+    Task(1.0, 10, items, given_start=True).check(arm26)
+    with pytest.raises(TaskError, match="'hand'"):
+        Task(1.0, 10, (FramePlane("hand", (0.0, 0.0, 1.0), 0.0),), given_start=True).check(arm26)
+    with pytest.raises(TaskError, match="q_init with given_start"):
+        Task(1.0, 10, items, q_init=(0.07, 0.3), given_start=True)

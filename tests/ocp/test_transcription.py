@@ -263,3 +263,35 @@ def test_the_curl_with_michauds_model_converges(tmp_path):
     assert run.fatigue_states == ("ma", "mr", "mf", "E")
     assert run.fatigue["E"].max() > 1e-4  # effort builds up above the threshold
     assert run.invariant_error().max() < 1e-6  # ma + mr + mf + E = 1
+
+
+def test_a_start_that_misses_a_node_0_row_is_not_infeasible(small_problem, build):
+    """A task row at node 0 that the start state misses (here a plane at every node, the start 3 mm
+    below it: a closed loop's measured state, docs/mpc.md) made the NLP infeasible, node 0 being
+    fixed to x_init. Its bounds at node 0 are widened to the start's value; every other node keeps
+    the row, and a start that meets the row keeps its bounds."""
+    import dataclasses
+
+    from fatigue_pin.ocp.task import FramePlane
+    from fatigue_pin.robot.kinematics import frame_placement
+
+    pm = small_problem.model.pin_model
+
+    def height(x):
+        return frame_placement(pm, "dumbbell", x[:2]).translation[2]
+
+    x0 = small_problem.initial_state()
+    plane = FramePlane("dumbbell", (0.0, 0.0, 1.0), height(x0) - 0.002)  # q_init 2 mm above the plane
+    task = dataclasses.replace(small_problem.task, items=small_problem.task.items + (plane,))
+    ocp = Ocp(dataclasses.replace(small_problem, task=task), 1, build.transcription, build.solver)
+    x_init = x0.copy()
+    x_init[0] = 0.02  # the shoulder 0.05 rad lower than q_init: the dumbbell 3.3 mm below the plane
+    assert height(x_init) - plane.offset < -0.003
+    sol = ocp.solve(x_init=x_init)
+    assert sol.success, sol.status
+    np.testing.assert_allclose(sol.x[0], x_init, atol=1e-12)
+    assert min(height(x) for x in sol.x[1:]) >= plane.offset - 1e-6
+    sc, nodes = ocp._state_constraints[0]
+    lower, upper = ocp._state_constraint_bounds(sc, nodes, x_init)
+    assert lower[0, 0] == pytest.approx(height(x_init)) and np.all(lower[0, 1:] == plane.offset) and np.all(upper == np.inf)
+    assert np.all(ocp._state_constraint_bounds(sc, nodes, x0)[0] == plane.offset)  # a start above keeps the row
