@@ -35,7 +35,7 @@ from fatigue_pin.core.errors import ResultFileError
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.estimation import History
 from fatigue_pin.drivers.mpc import REPLAN_DTYPE, ClosedLoop, LoopState
-from fatigue_pin.drivers.run import RunResult, RunStore, run_attributes, to_run_result
+from fatigue_pin.drivers.run import RunResult, RunStore, fatigue_parameters, run_attributes, to_run_result
 
 #: What a resumed closed loop must share with the stored one.
 FINGERPRINT_KEYS = ("model", "plant", "window", "mpc", "plant_settings", "transcription", "x_init")
@@ -92,7 +92,7 @@ def to_run(loop: ClosedLoop, state: LoopState, name: str, study: str = "", label
         real_time_factor_max=float(table["real_time_factor"].max()) if table.size else 0.0,
         real_time_factor_median=float(np.median(table["real_time_factor"])) if table.size else 0.0,
         plan_start=-1 if state.plan is None else int(state.plan[2]), fingerprint=fingerprint(loop),
-        plant_fatigue_params=json.dumps({hh.name: hh.params.as_dict() for hh in loop.plant_problem.actuators.halves}),
+        plant_fatigue_params=fatigue_parameters(loop.plant_problem.actuators.halves),
         plant_payload=repr(loop.plant_problem.model.payload), seed=loop.plant_settings.seed,
         fatigued_rows=np.array(loop.problem.actuators.fatigued_rows()),
     )

@@ -291,18 +291,23 @@ def failed_window_name(name: str) -> str:
     return f"{name}{FAILED_WINDOW_SUFFIX}"
 
 
+def fatigue_parameters(halves) -> str:
+    """The ``fatigue_params`` attribute: JSON of half name -> {"model": kind, parameters...}, for
+    the actuator halves ``halves`` (:attr:`SignedTorqueActuators.halves`)."""
+    return json.dumps({h.name: {"model": h.params.kind, **h.params.as_dict()} for h in halves})
+
+
 def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None) -> dict[str, object]:
     """Attributes describing a run of ``ocp``: horizon, sizes, weights and fatigue parameters by
     name (JSON), solver, model, and the study's ``labels`` (e.g. cost, S, preset)."""
     s = ocp.solver_options
-    per_half = {h.name: {"model": h.params.kind, **h.params.as_dict()} for h in ocp.actuators.halves}
     attrs: dict[str, object] = {
         "horizon": horizon,
         "n_cycles": ocp.n_cycles,
         "solver": f"ipopt/{s.linear_solver}" + ("/compiled" if s.compile else ""),
         "model": ocp.model.name,
         "weights": json.dumps(dict(zip(ocp.cost_terms, ocp.problem.weights.tolist()))),
-        "fatigue_params": json.dumps(per_half),
+        "fatigue_params": fatigue_parameters(ocp.actuators.halves),
         "tau_limits": ocp.actuators.signed_limits,
         "intervals_per_cycle": ocp.task.intervals_per_cycle,
         "dt": ocp.task.dt,

@@ -8,6 +8,10 @@
 * The torque limits and the target loads: :attr:`RunResult.signed_limits` and
   :meth:`RunResult.target_loads` (the stored ``tau_limits`` attribute, signed, one per half).
 * The grid: ``dt``, ``intervals_per_cycle``, ``substeps`` attributes.
+* A closed-loop run (``fatigue-pin mpc``) stores the plant's trajectory: it is checked against the
+  plant, the stored closed-loop study's ``plant_study`` (its payload) and the
+  ``plant_fatigue_params`` attribute (its true fatigue rates). A torque disturbance of the plant
+  is not in the stored torques, so a note says that the gaps include it.
 
 Everything is checked for what the reference integration needs (finite gravity, limits and time
 step, the joints of the run); a run that lacks it raises :class:`ResultFileError` with one line.
@@ -19,6 +23,7 @@ import dataclasses
 import json
 import math
 import tempfile
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -118,7 +123,7 @@ def rebuild(run: RunResult) -> Stored:
     notes: list[str] = []
     N = _intervals(run)
     horizon, dt, n, substeps = _grid(run, notes)
-    study = _study(run)
+    study = _study(run, notes)
     robot = _robot(run, study, notes)
     limits = _limits(run, robot, notes)
     halves = _halves(run, limits)
@@ -161,14 +166,29 @@ def _grid(run: RunResult, notes: list[str]) -> tuple[str, float, int, int]:
     return horizon, dt, n, substeps
 
 
-def _study(run: RunResult):
-    """The run's stored study, or None when it stores none."""
+def _study(run: RunResult, notes: list[str] | None = None):
+    """The run's stored study, or None when it stores none. For a closed-loop run, the plant's
+    study (the trajectory is the plant's)."""
+    from fatigue_pin.io.mpc_study import MPC_KEYS, MpcStudy
     from fatigue_pin.io.study import Study
 
     if not run.study:
         return None
+    source = f"the study stored with run {run.name!r}"
     try:
-        return Study.from_toml(run.study, f"the study stored with run {run.name!r}")
+        data = tomllib.loads(run.study)
+    except tomllib.TOMLDecodeError:
+        data = {}
+    try:
+        if any(key in data for key in MPC_KEYS):
+            closed_loop = MpcStudy.from_toml(run.study, source)
+            if notes is not None:
+                notes.append("closed-loop run: the plant's trajectory, checked against the plant's model and fatigue rates")
+                disturbance = closed_loop.plant.disturbance
+                if np.any(np.asarray(disturbance.constant) != 0) or np.any(np.asarray(disturbance.std) > 0):
+                    notes.append("the plant's torque disturbance is not in the stored torques: the gaps include it")
+            return closed_loop.plant_study
+        return Study.from_toml(run.study, source)
     except FatiguePinError as exc:
         raise ResultFileError(f"run {run.name!r}: its stored study does not load, so the model and task it was solved on "
                               f"cannot be rebuilt: {exc}") from None
@@ -231,7 +251,9 @@ def _limits(run: RunResult, robot, notes: list[str]) -> np.ndarray:
 
 
 def _fatigue_params(run: RunResult) -> dict[str, dict]:
-    raw = run.attrs.get("fatigue_params")
+    """Fatigue model and parameters per half: the plant's (``plant_fatigue_params``) for a
+    closed-loop run, else the run's own."""
+    raw = run.attrs.get("plant_fatigue_params") or run.attrs.get("fatigue_params")
     if raw:
         try:
             per_half = json.loads(raw)

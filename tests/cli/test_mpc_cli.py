@@ -83,3 +83,20 @@ def test_run_hands_a_closed_loop_study_to_the_closed_loop(cli_run, tmp_path):
     assert mine.name == theirs.name and mine.attrs["repetitions"] == theirs.attrs["repetitions"]
     assert np.array_equal(mine.q, theirs.q) and np.array_equal(mine.tau_plus, theirs.tau_plus)
     assert (tmp_path / "again_report.md").is_file() and MpcStudy.from_toml(mine.study).mpc.end == "receding"
+
+
+def test_verify_checks_a_closed_loop_run_against_the_plant(cli_run):
+    """A closed-loop run stores the plant's trajectory: verify rebuilds the plant (its fatigue
+    rates, F = 0.912 here, not the model's 0.456) and finds the stored states to be exactly the
+    plant's RK4 under the stored torques; checked against the model's rates instead, the fatigue
+    states would not be."""
+    from fatigue_pin.verify.verifier import verify_run
+
+    _, _, out, _ = cli_run
+    run = read_run(out)
+    report = verify_run(run)
+    assert any("closed-loop run" in note for note in report.notes)
+    assert report.rk4_residual < 1e-9  # the plant integrates the transcription's RK4 with its own rates
+    model_rates = read_run(out)
+    model_rates.attrs = {k: v for k, v in run.attrs.items() if k != "plant_fatigue_params"}
+    assert verify_run(model_rates).rk4_residual > 1e-4  # the model's F is not the plant's
