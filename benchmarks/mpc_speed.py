@@ -13,7 +13,9 @@ a re-plan every 5 intervals (0.1 s). Configurations (changes of the study, as ``
   ABA, OpenBLAS threads as the environment sets them);
 * ``now``: today's defaults (analytical ABA derivatives, one BLAS thread);
 * ``mu_init-1e-2``, ``mu_init-1e-3``: IPOPT's first barrier parameter lowered from 1 (the
-  re-plans start from the previous plan shifted, a guess close to the optimum).
+  re-plans start from the previous plan shifted, a guess close to the optimum);
+* ``warm``: ``horizon.warm_start``: every re-plan starts from the last plan's primal and dual
+  solution moved by the intervals between them (IPOPT's warm start).
 
 Every run is a child process; the configurations alternate within each repeat; the compile
 cache is built first (not timed). Printed: per configuration the medians over the repeats of the
@@ -39,6 +41,7 @@ CONFIGS: dict[str, dict] = {
     "now": {},
     "mu_init-1e-2": {"solver.mu_init": 1e-2},
     "mu_init-1e-3": {"solver.mu_init": 1e-3},
+    "warm": {"horizon.warm_start": True},
 }
 LOOP = {"mpc.replan_every": 5, "mpc.estimator": "open-loop", "horizon.max_cycles": 6}
 

@@ -180,6 +180,9 @@ class LoopState:
         params: estimated fatigue parameters after every re-plan's correction, each (n_params,).
         plan: the last converged plan ``(x (H+1, nx), u (H, nu), start node)``, or None.
         done: the controller stopped re-planning (a window failed, or max_cycles was reached).
+        solution: the last converged plan's NLP solution (primal and dual) and its start node,
+            for warm starts (``horizon.warm_start``); not stored, so a resumed run's first
+            re-plan starts cold.
     """
 
     x: list[np.ndarray]
@@ -190,6 +193,7 @@ class LoopState:
     params: list[np.ndarray] = field(default_factory=list)
     plan: tuple[np.ndarray, np.ndarray, int] | None = None
     done: bool = False
+    solution: Any = field(default=None, repr=False, compare=False)
 
     @property
     def node(self) -> int:
@@ -241,6 +245,8 @@ class ClosedLoop:
         if self.plant_problem.task.dt != task.dt:
             raise ParameterError(f"plant: interval {self.plant_problem.task.dt} s differs from the model's {task.dt} s")
         self._ocps: dict[int, Ocp] = {}
+        #: warm-start index maps per (previous phase, phase, intervals between)
+        self._shifts: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
         self.ocp = self.window_ocp(0)
         self.plant = Plant(self.plant_problem, task.dt, self.plant_settings, self.transcription.substeps)
 
@@ -322,7 +328,9 @@ class ClosedLoop:
             sol = None
             status, success, iterations, wall, objective = "Plant_Outside_Bounds", False, 0, 0.0, math.nan
         else:
-            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params)
+            warm = self._warm_start(state, k) if self.sliding.warm_start else None
+            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params, warm=warm,
+                            warm_start=warm is not None)
             status, success, iterations, wall, objective = sol.status, sol.success, sol.iterations, sol.wall_time_s, sol.objective
         horizon_s = self.replan_every * self.problem.task.dt
         state.replans.append((len(state.replans), k, k % self.n, status.encode()[:40], success, iterations,
@@ -330,12 +338,29 @@ class ClosedLoop:
         state.params.append(np.asarray(estimator.params, dtype=float).copy())
         if success:
             state.plan = (sol.x, sol.u, k)
+            state.solution = (sol.nlp, k)
         else:
             state.done = True
         max_cycles = self.sliding.max_cycles
         if max_cycles is not None and self.mpc.end == "run-out" and k + self.H >= max_cycles * self.n:
             state.done = True
         return sol
+
+    def _warm_start(self, state: LoopState, node: int) -> Any:
+        """The last converged plan's multipliers (and primal) moved to the window starting at
+        ``node`` (:func:`fatigue_pin.ocp.warm.shift_maps_between`: the two windows' tasks are
+        phase-shifted by the intervals between them), or None without one."""
+        from fatigue_pin.ocp.warm import shift_maps_between, shifted
+
+        if state.solution is None:
+            return None
+        previous, start = state.solution
+        key = (start % self.n, node % self.n, node - start)
+        if key not in self._shifts:
+            self._shifts[key] = shift_maps_between(self.window_ocp(start), self.window_ocp(node), node - start)
+        x_map, g_map = self._shifts[key]
+        return dataclasses.replace(previous, x=shifted(previous.x, x_map), lam_x=shifted(previous.lam_x, x_map),
+                                   lam_g=shifted(previous.lam_g, g_map))
 
     # -- the loop --------------------------------------------------------------------------------
 

@@ -1,5 +1,8 @@
 """Warm starts of a sliding window: the previous window's primal and dual solution, shifted.
 
+(:func:`shift_maps_between` does the same between the NLPs of two windows whose tasks are
+phase-shifted, e.g. the closed loop's re-plans a few intervals apart.)
+
 A window of K cycles that starts A cycles after the previous one solves the same NLP (same
 variables, same rows) with new parameters. Its start is the previous window's solution moved
 A cycles earlier: every variable and every constraint row at node k takes the value (or the
@@ -34,13 +37,14 @@ def variable_nodes(ocp) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(nodes), np.concatenate(slots)
 
 
-def _source(keys: list[tuple], shift: int, period: int) -> np.ndarray:
-    """For entries with keys (signature, node, rank): the index of the entry with the same
-    signature and rank at node + shift, or (past the end) at node + shift - j * period for the
-    smallest j that exists; -1 if none does."""
-    where = {k: i for i, k in enumerate(keys)}
+def _source(keys: list[tuple], shift: int, period: int, previous: list[tuple] | None = None) -> np.ndarray:
+    """For entries with keys (signature, node, rank): the index of the entry of ``previous``
+    (default: ``keys`` themselves) with the same signature and rank at node + shift, or (past the
+    end) at node + shift - j * period for the smallest j that exists; -1 if none does."""
+    previous = keys if previous is None else previous
+    where = {k: i for i, k in enumerate(previous)}
     last = defaultdict(lambda: -1)
-    for sig, node, rank in keys:
+    for sig, node, rank in previous:
         last[sig, rank] = max(last[sig, rank], node)
     out = np.full(len(keys), -1, dtype=np.int64)
     for i, (sig, node, rank) in enumerate(keys):
@@ -51,11 +55,8 @@ def _source(keys: list[tuple], shift: int, period: int) -> np.ndarray:
     return out
 
 
-def shift_maps(ocp, cycles: int) -> tuple[np.ndarray, np.ndarray]:
-    """Index maps ``(x_source, g_source)``: entry i of the shifted start takes entry
-    ``source[i]`` of the previous solution (-1: zero), for a shift of ``cycles`` cycles."""
-    n = ocp.task.intervals_per_cycle
-    shift = cycles * n
+def _keys(ocp) -> tuple[list[tuple], list[tuple]]:
+    """(signature, node, rank) of every variable and every constraint row of ``ocp``'s NLP."""
     node, slot = variable_nodes(ocp)
     x_keys = [((int(s),), int(k), 0) for k, s in zip(node, slot)]
     problem = ocp.nlp.problem
@@ -75,7 +76,26 @@ def shift_maps(ocp, cycles: int) -> tuple[np.ndarray, np.ndarray]:
         sig = tuple(sorted(zip(slot[c].tolist(), (node[c] - first).tolist())))
         g_keys.append((sig, first, rank[sig, first]))
         rank[sig, first] += 1
-    return _source(x_keys, shift, n), _source(g_keys, shift, n)
+    return x_keys, g_keys
+
+
+def shift_maps(ocp, cycles: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index maps ``(x_source, g_source)``: entry i of the shifted start takes entry
+    ``source[i]`` of the previous solution (-1: zero), for a shift of ``cycles`` cycles."""
+    n = ocp.task.intervals_per_cycle
+    x_keys, g_keys = _keys(ocp)
+    return _source(x_keys, cycles * n, n), _source(g_keys, cycles * n, n)
+
+
+def shift_maps_between(previous, ocp, intervals: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index maps ``(x_source, g_source)`` from the NLP of ``previous`` to that of ``ocp``, a
+    window starting ``intervals`` intervals later (its task phase-shifted by as much): entry i of
+    ``ocp``'s start takes entry ``source[i]`` of ``previous``'s solution (-1: zero). Rows that
+    ``ocp`` has and ``previous`` does not (a target that moved into the window) start at zero."""
+    n = ocp.task.intervals_per_cycle
+    x_new, g_new = _keys(ocp)
+    x_old, g_old = _keys(previous)
+    return _source(x_new, intervals, n, x_old), _source(g_new, intervals, n, g_old)
 
 
 def shifted(values: np.ndarray, source: np.ndarray) -> np.ndarray:
