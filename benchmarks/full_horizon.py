@@ -3,7 +3,7 @@
 Usage: python benchmarks/full_horizon.py [--cycles 4 8 16 32] [--repeats 3] [--cost fatigue-torque]
        [--stabilization 10] [--preset authors-code] [--guess rest|physical|resample]
        [--parallel auto|serial|openmp] [--no-compile] [--compile-mode library|nlp]
-       [--derivative-blocks auto|on|off]
+       [--derivative-blocks auto|on|off] [--solver NAME=VALUE ...]
 
 Each horizon is built once (the compiled NLP is cached; the first build on a machine includes
 the compile time, shown apart) and solved ``--repeats`` times from the same initial guess; the
@@ -20,6 +20,7 @@ and 13.6 s for 3 cycles (~4.5 s per cycle, 0.27 s per iteration at 3 cycles).
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
 import os
 import statistics
@@ -43,17 +44,20 @@ def main() -> None:
     parser.add_argument("--no-compile", action="store_true")
     parser.add_argument("--compile-mode", choices=("library", "nlp"), default="library")
     parser.add_argument("--derivative-blocks", choices=("auto", "on", "off"), default="auto")
+    parser.add_argument("--solver", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="SolverOptions fields, e.g. blas_threads=0 dynamics_jacobian='automatic' (the defaults before issue 23)")
     args = parser.parse_args()
 
     study = curl_study("full", args.cost, args.preset, args.stabilization,
                        guess="physical" if args.guess == "physical" else "rest",
                        solver={"compile": not args.no_compile}, transcription={"parallel": args.parallel})
     blocks = {"auto": None, "on": True, "off": False}[args.derivative_blocks]
-    solver = dataclasses.replace(study.solver(), compile_mode=args.compile_mode, derivative_blocks=blocks)
+    changes = {k: ast.literal_eval(v) for k, v in (item.split("=", 1) for item in args.solver)}
+    solver = dataclasses.replace(study.solver(), compile_mode=args.compile_mode, derivative_blocks=blocks, **changes)
     build = OcpBuilder(study.problem(), study.transcription(), solver, study.horizon["guess"])
     print(f"preset {args.preset}, cost {args.cost}, S = {args.stabilization:g}, guess {args.guess}, "
           f"map {args.parallel}, compile mode {args.compile_mode}, derivative blocks {args.derivative_blocks}, "
-          f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, {os.cpu_count()} cores")
+          f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}, {os.cpu_count()} cores, solver changes {changes}")
     header = (f"{'N':>4} {'build s':>8} {'compile s':>9} {'solve s':>8} {'iter':>5} {'ms/iter':>8} {'ms/iter/cycle':>13} "
               f"{'s/cycle':>8} {'vs paper code':>13} {'hess ms':>8} {'jac ms':>7}  status")
     print(header, flush=True)
