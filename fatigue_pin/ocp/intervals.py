@@ -72,9 +72,11 @@ class IntervalFunctions:
         derivatives = model.aba_derivatives()
         #: ``(y, tau) -> (ydot, ddq_dq, ddq_dv, Minv)`` from Pinocchio's analytical derivatives
         #: of ABA (SX), or None (nq != nv)
-        self.f_rb_derivatives = None if derivatives is None else ca.Function(
-            "f_rb_derivatives", [y, tau], [ca.vertcat(y[nq:], derivatives(y[:nq], y[nq:], tau)[0]), *derivatives(y[:nq], y[nq:], tau)[1:]],
-            ["y", "tau"], ["ydot", "ddq_dq", "ddq_dv", "Minv"])
+        self.f_rb_derivatives = None
+        if derivatives is not None:
+            ddq, ddq_dq, ddq_dv, minv = derivatives(y[:nq], y[nq:], tau)  # one pass: ddq shares its terms
+            self.f_rb_derivatives = ca.Function("f_rb_derivatives", [y, tau], [ca.vertcat(y[nq:], ddq), ddq_dq, ddq_dv, minv],
+                                                ["y", "tau"], ["ydot", "ddq_dq", "ddq_dv", "Minv"])
         self._h = h
         self.substeps = substeps
 
