@@ -98,11 +98,14 @@ def _maybe_expanded(f: ca.Function) -> ca.Function:
     return ca.Function(f.name(), sx.sx_in(), sx.call(sx.sx_in()), f.name_in(), f.name_out())
 
 
-def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True, hessian_of: ca.Function | None = None) -> BlockPair:
+def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True, hessian_of: ca.Function | None = None,
+                    jacobian: ca.Function | None = None) -> BlockPair:
     """``jblk_<f>`` and ``hblk_<f>`` of a one-output function ``f`` for the inputs ``diff``
     (``hessian=False``: no ``hblk_<f>``; the Lagrangian's Hessian then omits f's curvature;
     ``hessian_of``: ``hblk_<f>`` holds the second derivatives of this function of the same
-    signature instead, e.g. a coarser integrator of the same flow: an approximate Hessian).
+    signature instead, e.g. a coarser integrator of the same flow: an approximate Hessian;
+    ``jacobian``: a ready ``jblk_<f>`` of the same inputs and outputs, taken as it is instead of
+    CasADi's, e.g. one from analytical derivatives).
 
     SX functions give SX blocks; MX functions (RK4 as calls of an SX right-hand side) are
     inlined, so the blocks call derivatives of the SX right-hand side only, and each block is
@@ -122,14 +125,15 @@ def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True, h
     y = f.call(args, True, False)[0] if kind is ca.MX else f(*args)
     mu = kind.sym("mu", f.size1_out(0))
     names = ["w", *[f.name_in(i) for i in range(f.n_in()) if i not in diff]]
-    jac = ca.Function(JAC_BLOCK + f.name(), [w, *others], [y, ca.jacobian(y, w)], names, ["y", "J"])
+    jac = jacobian if jacobian is not None else _maybe_expanded(
+        ca.Function(JAC_BLOCK + f.name(), [w, *others], [y, ca.jacobian(y, w)], names, ["y", "J"]))
     if not hessian:
-        return BlockPair(diff, _maybe_expanded(jac), None)
+        return BlockPair(diff, jac, None)
     if hessian_of is not None:
         y = hessian_of.call(args, True, False)[0] if kind is ca.MX else hessian_of(*args)
     hess = ca.Function(HESS_BLOCK + f.name(), [w, *others, mu], [ca.tril(ca.hessian(ca.dot(mu, y), w)[0])],
                        [*names, "mu"], ["H"])
-    return BlockPair(diff, _maybe_expanded(jac), _maybe_expanded(hess))
+    return BlockPair(diff, jac, _maybe_expanded(hess))
 
 
 def _call_function(out: ca.MX) -> str | None:

@@ -160,10 +160,10 @@ class IntervalFunctions:
             if f.name() not in diffs:
                 continue
             rb = f.name() == "F_rb"
-            pair = block_functions(f, diffs[f.name()], hessian=not (rb and hessian == "gauss-newton"),
-                                   hessian_of=approximations.get(hessian) if rb else None)
-            analytical = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and pair.diff == (0, 1) else None
-            self.blocks[f.name()] = pair if analytical is None else BlockPair(pair.diff, analytical, pair.hess)
+            diff = tuple(int(i) for i in diffs[f.name()])
+            analytical = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and diff == (0, 1) else None
+            self.blocks[f.name()] = block_functions(f, diff, hessian=not (rb and hessian == "gauss-newton"),
+                                                    hessian_of=approximations.get(hessian) if rb else None, jacobian=analytical)
         self.blocks_hessian = hessian
 
     def block_functions(self) -> list[ca.Function]:
