@@ -180,9 +180,8 @@ class LoopState:
         params: estimated fatigue parameters after every re-plan's correction, each (n_params,).
         plan: the last converged plan ``(x (H+1, nx), u (H, nu), start node)``, or None.
         done: the controller stopped re-planning (a window failed, or max_cycles was reached).
-        solution: the last converged plan's NLP solution (primal and dual) and its start node,
-            for warm starts (``horizon.warm_start``); not stored, so a resumed run's first
-            re-plan starts cold.
+        solution: the NLP solution (primal and dual) of ``plan``, for warm starts
+            (``horizon.warm_start``); not stored, so a resumed run's first re-plan starts cold.
     """
 
     x: list[np.ndarray]
@@ -338,7 +337,7 @@ class ClosedLoop:
         state.params.append(np.asarray(estimator.params, dtype=float).copy())
         if success:
             state.plan = (sol.x, sol.u, k)
-            state.solution = (sol.nlp, k)
+            state.solution = sol.nlp
         else:
             state.done = True
         max_cycles = self.sliding.max_cycles
@@ -350,17 +349,15 @@ class ClosedLoop:
         """The last converged plan's multipliers (and primal) moved to the window starting at
         ``node`` (:func:`fatigue_pin.ocp.warm.shift_maps_between`: the two windows' tasks are
         phase-shifted by the intervals between them), or None without one."""
-        from fatigue_pin.ocp.warm import shift_maps_between, shifted
+        from fatigue_pin.ocp.warm import shift_maps_between, shifted_result
 
         if state.solution is None:
             return None
-        previous, start = state.solution
+        start = state.plan[2]  # the plan the solution is of
         key = (start % self.n, node % self.n, node - start)
         if key not in self._shifts:
             self._shifts[key] = shift_maps_between(self.window_ocp(start), self.window_ocp(node), node - start)
-        x_map, g_map = self._shifts[key]
-        return dataclasses.replace(previous, x=shifted(previous.x, x_map), lam_x=shifted(previous.lam_x, x_map),
-                                   lam_g=shifted(previous.lam_g, g_map))
+        return shifted_result(state.solution, self._shifts[key])
 
     # -- the loop --------------------------------------------------------------------------------
 

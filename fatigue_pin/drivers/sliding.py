@@ -208,15 +208,11 @@ class SlidingHorizon:
 
     def _warm_start(self, previous: Any) -> Any:
         """The previous window's NLP result shifted by A cycles (:mod:`fatigue_pin.ocp.warm`)."""
-        import dataclasses
-
-        from fatigue_pin.ocp.warm import shift_maps, shifted
+        from fatigue_pin.ocp.warm import shift_maps, shifted_result
 
         if getattr(self, "_shift", None) is None:
             self._shift = shift_maps(self.ocp, self.sliding.advance)
-        x_map, g_map = self._shift
-        return dataclasses.replace(previous, x=shifted(previous.x, x_map), lam_x=shifted(previous.lam_x, x_map),
-                                   lam_g=shifted(previous.lam_g, g_map))
+        return shifted_result(previous, self._shift)
 
     def _iteration_limit(self, state: _State) -> int | None:
         return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)

@@ -17,6 +17,7 @@ rank among such rows at their node) are the same constraint at other nodes.
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 
 import casadi as ca
@@ -102,3 +103,12 @@ def shifted(values: np.ndarray, source: np.ndarray) -> np.ndarray:
     """``values`` taken through an index map of :func:`shift_maps` (zero where it is -1)."""
     values = np.asarray(values, dtype=float).reshape(-1)
     return np.where(source >= 0, values[np.maximum(source, 0)], 0.0)
+
+
+def shifted_result(previous, maps: tuple[np.ndarray, np.ndarray]):
+    """The NLP result ``previous`` (:class:`~fatigue_pin.ocp.solver.NlpResult`) with its primal
+    and dual values taken through the index maps ``(x_source, g_source)`` of :func:`shift_maps`
+    or :func:`shift_maps_between`: the start of a warm-started solve."""
+    x_map, g_map = maps
+    return dataclasses.replace(previous, x=shifted(previous.x, x_map), lam_x=shifted(previous.lam_x, x_map),
+                               lam_g=shifted(previous.lam_g, g_map))
