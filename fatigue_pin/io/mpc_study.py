@@ -58,6 +58,12 @@ def is_closed_loop(path: str | Path) -> bool:
         data = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, OSError):
         return False
+    return is_closed_loop_table(data)
+
+
+def is_closed_loop_table(data: dict[str, Any]) -> bool:
+    """Whether the parsed study ``data`` is a closed-loop study: it has a ``[plant]`` or
+    ``[mpc]`` table or a ``seed`` (:data:`MPC_KEYS`)."""
     return any(key in data for key in MPC_KEYS)
 
 

@@ -169,7 +169,7 @@ def _grid(run: RunResult, notes: list[str]) -> tuple[str, float, int, int]:
 def _study(run: RunResult, notes: list[str] | None = None):
     """The run's stored study, or None when it stores none. For a closed-loop run, the plant's
     study (the trajectory is the plant's)."""
-    from fatigue_pin.io.mpc_study import MPC_KEYS, MpcStudy
+    from fatigue_pin.io.mpc_study import MpcStudy, is_closed_loop_table
     from fatigue_pin.io.study import Study
 
     if not run.study:
@@ -178,10 +178,10 @@ def _study(run: RunResult, notes: list[str] | None = None):
     try:
         data = tomllib.loads(run.study)
     except tomllib.TOMLDecodeError:
-        data = {}
+        data = None  # Study.from_toml names the error
     try:
-        if any(key in data for key in MPC_KEYS):
-            closed_loop = MpcStudy.from_toml(run.study, source)
+        if data is not None and is_closed_loop_table(data):
+            closed_loop = MpcStudy.from_dict(data)
             if notes is not None:
                 notes.append("closed-loop run: the plant's trajectory, checked against the plant's model and fatigue rates")
                 disturbance = closed_loop.plant.disturbance
