@@ -24,6 +24,7 @@ The symbolic methods accept CasADi SX, MX or DM and numpy arrays, and return Cas
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol, Union
@@ -35,7 +36,7 @@ from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import FatigueParams
 
-__all__ = ["ActuatorHalf", "SignedTorqueActuators", "ParamsSpec"]
+__all__ = ["ActuatorHalf", "FatigueGroup", "SignedTorqueActuators", "ParamsSpec"]
 
 Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
 #: Fatigue parameters for :meth:`SignedTorqueActuators.from_model`: one set for every half, or a
@@ -47,6 +48,29 @@ class _HasTorqueLimits(Protocol):
     joint_names: tuple[str, ...]
     tau_lower: np.ndarray
     tau_upper: np.ndarray
+
+
+@dataclass(frozen=True)
+class FatigueGroup:
+    """Actuator halves whose fatigue models have the same equations
+    (:meth:`SignedTorqueActuators.fatigue_groups`).
+
+    Attributes:
+        label: the model's kind (``xia``; runs of other characters than letters and digits as one
+            ``_``), with ``_2``, ``_3``, ... for further groups of the same kind (other options,
+            e.g. Xia's ``rest_load``).
+        model: the model of the group's first half (its equations are every half's).
+        halves: indices of the halves, increasing.
+        state_rows: rows of their states in the fatigue state vector, half after half (each
+            half's states in its model's order), length ``len(halves) * model.n_states()``.
+        param_rows: entries of their parameters in the parameter vector, half after half.
+    """
+
+    label: str
+    model: FatigueModel
+    halves: tuple[int, ...]
+    state_rows: tuple[int, ...]
+    param_rows: tuple[int, ...]
 
 
 @dataclass(frozen=True)
@@ -280,6 +304,28 @@ class SignedTorqueActuators:
         """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
         return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
 
+    def fatigue_groups(self) -> tuple[FatigueGroup, ...]:
+        """The halves grouped by fatigue equations (the same model kind and :meth:`structure_key
+        <fatigue_pin.fatigue.interface.FatigueModel.structure_key>`; parameter values may differ),
+        groups in the order of their first half. A group's halves share one state step of one
+        half, mapped over them (:mod:`fatigue_pin.ocp.intervals`)."""
+        keys: dict[str, list[int]] = {}
+        for i, h in enumerate(self._halves):
+            keys.setdefault(h.params.structure_key(), []).append(i)
+        offsets, param_offsets = self.state_offsets(), self.param_offsets()
+        groups, seen = [], {}
+        for halves in keys.values():
+            model = self._halves[halves[0]].params
+            kind = "_".join(re.findall(r"[A-Za-z0-9]+", model.kind)) or "model"  # a name CasADi accepts
+            seen[kind] = seen.get(kind, 0) + 1
+            label = kind if seen[kind] == 1 else f"{kind}_{seen[kind]}"
+            ns, npar = model.n_states(), model.n_params()
+            groups.append(FatigueGroup(
+                label, model, tuple(halves),
+                tuple(offsets[i] + s for i in halves for s in range(ns)),
+                tuple(param_offsets[i] + k for i in halves for k in range(npar))))
+        return tuple(groups)
+
     def structure_key(self) -> str:
         """Text identifying what compiled code depends on: joints, limits and fatigue equations."""
         return ";".join(f"{h.name}:{h.tau_limit!r}:{h.params.structure_key()}" for h in self._halves)
@@ -338,8 +384,21 @@ class SignedTorqueActuators:
     def target_loads(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
         """Target loads ``TL`` (dimensionless), shape (n_halves,): ``tau_plus[j] / tau_upper[j]`` and
         ``tau_minus[j] / tau_lower[j]`` interleaved in half order."""
-        tau = self.halves_torque(tau_plus, tau_minus)
-        return tau / ca.DM(self.signed_limits)
+        u = ca.vertcat(_column(tau_plus, self.nv, "tau_plus"), _column(tau_minus, self.nv, "tau_minus"))
+        return self.control_target_loads(u)
+
+    def control_rows(self) -> list[int]:
+        """Row of each half's torque in the controls ``u = (tau_plus, tau_minus)`` (shape (2 nv,)),
+        length n_halves: ``j`` for ``j_plus``, ``nv + j`` for ``j_minus``."""
+        return [j + (0 if h.sign > 0 else self.nv) for j, h in zip(np.repeat(np.arange(self.nv), 2), self._halves)]
+
+    def control_target_loads(self, u: ca.SX | ca.MX | ca.DM) -> ca.SX | ca.MX | ca.DM:
+        """Target loads of every half, shape (n_halves, K), from controls ``u = (tau_plus;
+        tau_minus)`` of shape (2 nv, K) (N m): a row selection divided by the signed limits, so
+        affine in ``u`` (the one place that divides a torque by its limit)."""
+        if u.size1() != 2 * self.nv:
+            raise DimensionError(f"controls u of shape {u.shape}: expected {2 * self.nv} rows (tau_plus, tau_minus)")
+        return u[self.control_rows(), :] / ca.repmat(ca.DM(self.signed_limits), 1, u.size2())
 
     def state(self, m: Expr, state: str) -> Expr:
         """State ``state`` (e.g. ``"mf"``) of every half, shape (n_halves,), from ``m`` of shape

@@ -1,14 +1,15 @@
 """The interval functions of a problem: what happens over one shooting interval.
 
 :class:`IntervalFunctions` builds, once per problem, the rigid-body step (RK4 with substeps of
-Pinocchio's ABA on SX, called from MX), the fatigue step (RK4 on SX), the coupling rows and the
-cost terms of one interval, and their derivative blocks; :mod:`fatigue_pin.ocp.transcription`
-maps them over a horizon.
+Pinocchio's ABA on SX, called from MX), the fatigue step (RK4 of one actuator half per group of
+halves with the same fatigue equations, mapped over the halves), the coupling rows and the cost
+terms of one interval, and their derivative blocks; :mod:`fatigue_pin.ocp.transcription` maps
+them over a horizon.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING, Callable, Mapping
 
 import casadi as ca
 import numpy as np
@@ -19,6 +20,10 @@ from fatigue_pin.ocp.problem import Problem
 
 if TYPE_CHECKING:
     from fatigue_pin.ocp.transcription import Transcription
+
+#: Name prefix of the fatigue step of one half of a group (``F_fatigue_<label>``).
+FATIGUE_STEP = "F_fatigue_"
+
 
 def rk4(f: ca.Function, x: ca.MX | ca.SX, args: tuple, h: float, steps: int) -> ca.MX | ca.SX:
     """``steps`` classical Runge-Kutta steps of length ``h`` of ``xdot = f(x, *args)``."""
@@ -36,21 +41,29 @@ class IntervalFunctions:
 
     With piecewise-constant controls the rigid-body states (q, qdot) and the fatigue states m
     evolve independently over an interval, so RK4 on the whole state equals RK4 on each part;
-    integrating them separately keeps the derivatives (and the exact Hessian) small.
+    integrating them separately keeps the derivatives (and the exact Hessian) small. For the same
+    reason the fatigue step is built for one half (the halves are independent: a half's states
+    depend on its own torque and parameters only) and mapped over the halves.
 
     Attributes:
         f_rb: ``f_rb(y, tau) -> ydot`` with y = (q, qdot): Pinocchio's ABA (SX).
         f_fatigue: ``f_fatigue(m, u, p) -> mdot`` of all actuator halves (SX).
         F_rb: ``F_rb(y, tau) -> y_next``, RK4 over one interval.
-        F_fatigue: ``F_fatigue(m, u, p) -> m_next``, RK4 over one interval (SX).
+        F_fatigue: ``F_fatigue(m, u, p) -> m_next``, RK4 over one interval of all halves: one SX
+            function, or with ``fatigue_calls`` the maps of :attr:`fatigue_steps` (MX,
+            :meth:`fatigue_by_groups`). The same values either way, to rounding.
+        fatigue_groups: the halves grouped by fatigue equations
+            (:meth:`~fatigue_pin.ocp.actuators.SignedTorqueActuators.fatigue_groups`).
+        fatigue_steps: per group, ``F_fatigue_<label>(m_h, TL_h, p_h) -> m_h_next``: the RK4 of one
+            half over one interval (the library compiles these, not F_fatigue).
         coupling: ``coupling(x, u) -> TL + m_fatigued`` of every half.
         terms: cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_terms,)``.
     """
 
     def __init__(self, problem: Problem, transcription: Transcription, fatigue_calls: bool = False) -> None:
         """``fatigue_calls``: integrate the fatigue states as MX calls of the SX right-hand side
-        (for a compiled library: derivative code about 7 times smaller, same values) instead of
-        one SX function."""
+        of one half, mapped over the halves (for a compiled library: derivative code of one half
+        instead of all, same values) instead of one SX function of all halves."""
         model, actuators, task = problem.model, problem.actuators, problem.task
         layout = problem.layout
         self.layout = layout
@@ -80,14 +93,25 @@ class IntervalFunctions:
         self._h = h
         self.substeps = substeps
 
+        self.actuators = actuators
         m = ca.SX.sym("m", actuators.n_states)
         u = ca.SX.sym("u", nu)
         p = ca.SX.sym("p_fatigue", actuators.n_params)
         self.f_fatigue = ca.Function("f_fatigue", [m, u, p], [actuators.fatigue_rates(m, u[:nv], u[nv:], p)], ["m", "u", "p"], ["mdot"])
+        # per group of halves with the same equations, the RK4 of one half (SX, or with
+        # fatigue_calls MX calls of the model's SX right-hand side: less derivative code)
+        self.fatigue_groups = actuators.fatigue_groups()
+        self.fatigue_steps: dict[str, ca.Function] = {}
+        kind = ca.MX if fatigue_calls else ca.SX
+        for group in self.fatigue_groups:
+            half = group.model
+            mh, tl, ph = kind.sym("m", half.n_states()), kind.sym("TL"), kind.sym("p", half.n_params())
+            name = FATIGUE_STEP + group.label
+            self.fatigue_steps[name] = ca.Function(name, [mh, tl, ph], [rk4(half.rhs(), mh, (tl, ph), h, substeps)],
+                                                   ["m", "TL", "p"], ["m_next"])
+        self._fatigue_calls = fatigue_calls
         if fatigue_calls:
-            m_mx, u_mx, p_mx = ca.MX.sym("m", m.numel()), ca.MX.sym("u", nu), ca.MX.sym("p_fatigue", p.numel())
-            self.F_fatigue = ca.Function("F_fatigue", [m_mx, u_mx, p_mx], [rk4(self.f_fatigue, m_mx, (u_mx, p_mx), h, substeps)],
-                                         ["m", "u", "p"], ["m_next"])
+            self.F_fatigue = self._mapped_fatigue_step()
         else:
             self.F_fatigue = ca.Function("F_fatigue", [m, u, p], [rk4(self.f_fatigue, m, (u, p), h, substeps)], ["m", "u", "p"], ["m_next"])
         self.library = None  # the compiled library once :meth:`use` has swapped the functions
@@ -137,12 +161,50 @@ class IntervalFunctions:
 
     #: library functions that only the transcription's constraints evaluate (no other NLP, such
     #: as the moving-horizon estimator's, differentiates them): with derivative blocks they are
-    #: compiled without derivative functions
+    #: compiled without derivative functions. (Not the fatigue steps: :attr:`F_fatigue`, which
+    #: the estimator differentiates, is assembled around them.)
     blocks_only = ("F_rb",)
+
+    def _mapped_fatigue_step(self) -> ca.Function:
+        """``F_fatigue(m, u, p) -> m_next`` of all halves as maps of :attr:`fatigue_steps` (MX;
+        around the compiled steps once :meth:`use` has swapped them, so a library holds the
+        fatigue step once, for one half per group)."""
+        A = self.actuators
+        m, u, p = ca.MX.sym("m", A.n_states), ca.MX.sym("u", 2 * A.nv), ca.MX.sym("p_fatigue", A.n_params)
+        return ca.Function("F_fatigue", [m, u, p], [self.fatigue_by_groups(m, u, p)], ["m", "u", "p"], ["m_next"])
+
+    def fatigue_by_groups(self, m: ca.MX, u: ca.MX, p: ca.MX, call: Callable[..., ca.MX] | None = None) -> ca.MX:
+        """The fatigue states after one interval, (n_states, K), from states ``m`` (n_states, K),
+        controls ``u`` (nu, K) and parameters ``p`` (n_params, 1) or (n_params, K): per group of
+        halves (:attr:`fatigue_groups`) one ``map`` of its one-half step over its halves and the
+        K columns. Column ``k * n_g + i`` of a group's map is its half i in column k. ``call(f,
+        n, *args)`` maps ``f`` over ``n`` columns (default ``f.map(n)(*args)``; the transcription
+        records its maps). Every operation around the maps is a selection, a reshape or the
+        division of a torque by its limit, so the maps' inputs are affine in (m, u) and the
+        states linear in their outputs, as the derivative blocks need
+        (:mod:`fatigue_pin.ocp.blocks`). The same values as the RK4 of all halves at once
+        (:attr:`f_fatigue`) to rounding: the halves are independent."""
+        call = call or (lambda f, n, *args: f.map(n)(*args))
+        K = m.size2()
+        TL = self.actuators.control_target_loads(u)
+        parts, rows = [], []
+        for group in self.fatigue_groups:
+            f = self.fatigue_steps[FATIGUE_STEP + group.label]
+            ns, npar, nh = group.model.n_states(), group.model.n_params(), len(group.halves)
+            Pg = p[list(group.param_rows), :]
+            Pg = ca.reshape(Pg, npar, nh * K) if p.size2() == K else ca.repmat(ca.reshape(Pg, npar, nh), 1, K)
+            out = call(f, nh * K, ca.reshape(m[list(group.state_rows), :], ns, nh * K),
+                       ca.reshape(TL[list(group.halves), :], 1, nh * K), Pg)
+            parts.append(ca.reshape(out, ns * nh, K))
+            rows += group.state_rows
+        stacked = ca.vertcat(*parts)
+        if rows == list(range(len(rows))):
+            return stacked
+        return stacked[np.argsort(rows).tolist(), :]  # back to the halves' order
 
     def library_functions(self) -> list[ca.Function]:
         """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
-        return [self.F_rb, self.F_fatigue, self.coupling, self.terms]
+        return [self.F_rb, *self.fatigue_steps.values(), self.coupling, self.terms]
 
     def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], hessian: str = "exact", jacobian: str = "automatic") -> None:
         """Build the derivative blocks (:func:`fatigue_pin.ocp.blocks.block_functions`) of the
@@ -175,7 +237,12 @@ class IntervalFunctions:
         externals from ``library``."""
         functions = library.functions()
         for f in self.library_functions():
-            setattr(self, f.name(), functions[f.name()])
+            if f.name() in self.fatigue_steps:
+                self.fatigue_steps[f.name()] = functions[f.name()]
+            else:
+                setattr(self, f.name(), functions[f.name()])
+        if self._fatigue_calls:
+            self.F_fatigue = self._mapped_fatigue_step()
         self.blocks = {name: BlockPair(pair.diff, functions[pair.jac.name()], None if pair.hess is None else functions[pair.hess.name()])
                        for name, pair in self.blocks.items() if pair.jac.name() in functions}
         self.library = library

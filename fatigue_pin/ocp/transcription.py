@@ -37,7 +37,7 @@ __all__ = ["GUESSES", "INTEGRATORS", "MAP_MODES", "IntervalFunctions", "Ocp", "O
 import os
 import time
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping
 
 import casadi as ca
 import numpy as np
@@ -288,7 +288,7 @@ class Ocp:
         if self.transcription.torque_variable:
             opti.subject_to(T == U[:nv, :] + U[nv:, :])
         opti.subject_to(X[:ny, 1:] == mapped(fn.F_rb, N, X[:ny, :N], T))
-        opti.subject_to(X[ny:, 1:] == mapped(fn.F_fatigue, N, X[ny:, :N], U, P_fatigue))
+        opti.subject_to(X[ny:, 1:] == self._fatigue_step(X[ny:, :N], U, P_fatigue, mapped))
         coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
         opti.subject_to(opti.bounded(0, coupling, 1))
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
@@ -327,6 +327,17 @@ class Ocp:
         else:  # as before the blocks (the same generated code, so `nlp` mode keeps its cache entries)
             opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_fn(X, U))) if n_terms else ca.MX(0))
         return opti
+
+    def _fatigue_step(self, M: ca.MX, U: ca.MX, P: ca.MX, mapped: Callable[..., ca.MX]) -> ca.MX:
+        """The fatigue states after every interval, (n_states, N), from M (n_states, N), U (nu, N)
+        and the fatigue parameters P, through ``mapped(f, n, *args)``. With the derivative blocks,
+        one map per group of halves of its one-half step
+        (:meth:`~fatigue_pin.ocp.intervals.IntervalFunctions.fatigue_by_groups`), so that a block
+        differentiates one half, not all; otherwise one map of the all-halves ``F_fatigue`` as
+        before the blocks (the same generated code, so ``nlp`` mode keeps its cache entries)."""
+        if self._uses_blocks:
+            return self.functions.fatigue_by_groups(M, U, P, call=mapped)
+        return mapped(self.functions.F_fatigue, M.size2(), M, U, P)
 
     @property
     def _uses_blocks(self) -> bool:

@@ -60,7 +60,7 @@ def _compare(ocp: Ocp, seed: int = 0) -> None:
 
 def test_arm26_blocks_equal_casadis_derivatives(arm26):
     ocp = _ocp(small_curl(), arm26, 2, blocks=True)
-    assert {c.function.name() for c in ocp.mapped_calls} == {"F_rb", "F_fatigue", "coupling", "terms"}
+    assert {c.function.name() for c in ocp.mapped_calls} == {"F_rb", "F_fatigue_xia", "coupling", "terms"}
     _compare(ocp)
 
 
@@ -101,7 +101,7 @@ def test_gauss_newton_hessian_drops_only_the_rigid_body_curvature(arm26):
     exact = _ocp(study, arm26, 1, blocks=True)
     solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, hessian="gauss-newton")
     gn = Ocp(study.problem(arm26), 1, study.transcription(), solver)
-    assert gn.functions.blocks["F_rb"].hess is None and gn.functions.blocks["F_fatigue"].hess is not None
+    assert gn.functions.blocks["F_rb"].hess is None and gn.functions.blocks["F_fatigue_xia"].hess is not None
     reference = ca.nlpsol("reference", "ipopt", gn.nlp.problem, {"print_time": False})
     hess_ref = reference.get_function("nlp_hess_l")
     # the rigid-body gap rows of g: those that depend on the output of the mapped F_rb
@@ -192,7 +192,7 @@ def test_analytical_rigid_body_jacobian_equals_automatic_differentiation(arm26, 
         (y, J), (y0, J0) = mine(w), automatic(w)
         assert np.abs(np.asarray(y) - np.asarray(y0)).max() <= 1e-12 * max(1.0, float(ca.norm_inf(y0)))
         assert np.abs(np.asarray(ca.densify(J)) - np.asarray(ca.densify(J0))).max() <= 1e-11 * max(1.0, float(ca.norm_inf(J0)))
-    assert fn.blocks["F_fatigue"].jac.name() == "jblk_F_fatigue"  # the others stay automatic
+    assert fn.blocks["F_fatigue_xia"].jac.name() == "jblk_F_fatigue_xia"  # the others stay automatic
 
 
 def test_euler_step_hessian_block_is_dt_times_the_hessian_of_aba(arm26):

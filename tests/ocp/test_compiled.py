@@ -235,9 +235,19 @@ def test_ocp_with_a_compiled_library_matches_the_uncompiled_one(arm26, tmp_path)
     assert ocp.library is not None and ocp.compile_time_s > 0 and ocp.map_mode == "thread"
     assert any("arm26 interval functions" in line for line in lines)
     # the derivative blocks are compiled in the library and give IPOPT its Jacobian and Hessian
-    assert {"jblk_F_rb", "hblk_F_rb", "jblk_terms", "hblk_F_fatigue"} <= set(ocp.library.names)
+    assert {"jblk_F_rb", "hblk_F_rb", "jblk_terms", "hblk_F_fatigue_xia"} <= set(ocp.library.names)
     assert set(ocp.nlp.derivatives) == {"jac_g", "hess_lag"}
-    assert all(ocp.functions.blocks[name].hess.is_a("External") for name in ("F_rb", "F_fatigue"))
+    assert all(ocp.functions.blocks[name].hess.is_a("External") for name in ("F_rb", "F_fatigue_xia"))
+    # F_fatigue (the estimator's, the guesses') is the map of the compiled one-half step: the
+    # values and the Jacobian in (m, u, p) of the uncompiled all-halves RK4
+    plain = IntervalFunctions(problem, study.transcription())
+    assert "F_fatigue" not in ocp.library.names and ocp.functions.fatigue_steps["F_fatigue_xia"].is_a("External")
+    args = [ca.MX.sym(name, plain.F_fatigue.size1_in(i)) for i, name in enumerate("mup")]
+    jacobians = [ca.Function("J", args, [ca.jacobian(f(*args), ca.vertcat(*args))]) for f in (ocp.functions.F_fatigue, plain.F_fatigue)]
+    rng = np.random.default_rng(0)
+    point = (rng.uniform(0, 1, args[0].numel()), 20 * rng.uniform(-1, 1, args[1].numel()), problem.actuators.param_vector())
+    assert np.allclose(ocp.functions.F_fatigue(*point), plain.F_fatigue(*point), rtol=0, atol=1e-14)
+    assert np.allclose(jacobians[0](*point), jacobians[1](*point), rtol=1e-12, atol=1e-12)
     sol = ocp.solve()
     assert sol.success and sol.iterations == reference.iterations
     assert sol.objective == pytest.approx(reference.objective, rel=1e-8)
