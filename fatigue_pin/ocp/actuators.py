@@ -390,7 +390,7 @@ class SignedTorqueActuators:
     def control_rows(self) -> list[int]:
         """Row of each half's torque in the controls ``u = (tau_plus, tau_minus)`` (shape (2 nv,)),
         length n_halves: ``j`` for ``j_plus``, ``nv + j`` for ``j_minus``."""
-        return [j + (0 if h.sign > 0 else self.nv) for j, h in zip(np.repeat(np.arange(self.nv), 2), self._halves)]
+        return [k // 2 + (0 if h.sign > 0 else self.nv) for k, h in enumerate(self._halves)]
 
     def control_target_loads(self, u: ca.SX | ca.MX | ca.DM) -> ca.SX | ca.MX | ca.DM:
         """Target loads of every half, shape (n_halves, K), from controls ``u = (tau_plus;
