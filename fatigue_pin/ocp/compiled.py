@@ -400,7 +400,7 @@ def requested_derivatives(solver: ca.Function, names: Sequence[str]) -> dict[str
     NLP would have used.
     """
     seen: dict[str, ca.Function] = {}
-    stack = [solver.get_function(fname) for fname in NLP_FUNCTIONS]
+    stack = [solver.get_function(fname) for fname in NLP_FUNCTIONS if solver.has_function(fname)]
     while stack:
         for g in stack.pop().find_functions():
             if g.name() not in seen:

@@ -48,6 +48,11 @@ DYNAMICS_JACOBIANS = ("analytical", "automatic")
 #: curl: 30 % fewer iterations than cold windows; 1e-4 and 1e-6 gave 10-20 %).
 WARM_START_OPTIONS = {"warm_start_init_point": "yes", "warm_start_bound_push": 1e-3, "warm_start_slack_bound_push": 1e-3,
                       "warm_start_mult_bound_push": 1e-3, "mu_init": 1e-2}
+#: ``nlpsol`` options of every solve: no multipliers of the parameters (nothing uses them), and
+#: so no ``nlp_grad`` function, whose reverse sweep through the rigid-body step would make the
+#: compiled library carry that step's adjoint code although the derivative blocks give IPOPT
+#: every derivative it needs (818 kB of C and about 22 s of compiler time on the UR5).
+NLPSOL_OPTIONS = {"calc_lam_p": False, "no_nlp_grad": True}
 #: IPOPT statuses counted as converged.
 CONVERGED_STATUSES = ("Solve_Succeeded",)
 
@@ -213,7 +218,7 @@ class SolverOptions:
         if self.max_wall_time is not None:
             ipopt["max_wall_time"] = float(self.max_wall_time)
         ipopt.update(self.ipopt)
-        return {"ipopt": ipopt, "print_time": False, "error_on_fail": False}
+        return {"ipopt": ipopt, "print_time": False, "error_on_fail": False, **NLPSOL_OPTIONS}
 
     def check_ipopt(self) -> None:
         """Refuse, before any work, IPOPT options that IPOPT would reject or that cannot work on
@@ -367,21 +372,37 @@ def _host_key(options: SolverOptions) -> bytes:
     return host_key(options.compiler_flags)
 
 
-def simple_bounds(x: ca.MX, p: ca.MX, g: ca.MX, lbg: ca.MX, ubg: ca.MX,
-                  kept_rows: Sequence[int] = ()) -> tuple[list[int], ca.MX, ca.MX]:
+def simple_bounds(x: ca.MX, p: ca.MX, g: ca.MX, lbg: ca.MX, ubg: ca.MX, kept_rows: Sequence[int] = (),
+                  calls: Sequence[ca.MX] = ()) -> tuple[list[int], ca.MX, ca.MX]:
     """``casadi.detect_simple_bounds`` that leaves ``kept_rows`` of ``g`` in ``g``.
 
+    ``calls``: outputs of the function calls in ``g`` (the mapped interval functions). A row that
+    uses one is a constraint, never a simple bound, and is left out of the detection, which
+    differentiates the rows it examines: a call compiled without derivative code (the rigid
+    body's step with derivative blocks) has none.
+
     Returns:
-        The rows of ``g`` that stay constraints (those of ``kept_rows`` last), and the variable
-        bounds ``lbx, ubx`` (n_x,) as expressions of the parameters ``p``.
+        The rows of ``g`` that stay constraints (in their order, those of ``kept_rows`` last), and
+        the variable bounds ``lbx, ubx`` (n_x,) as expressions of the parameters ``p``.
     """
     kept = sorted({int(i) for i in kept_rows})
-    if not kept:
+    with_calls: set[int] = set()
+    p_all = p
+    if calls:  # each call output as a parameter of the detection: its rows are then not simple
+        symbols = [ca.MX.sym(f"call_{i}", c.nnz()) for i, c in enumerate(calls)]
+        g = ca.graph_substitute([g], list(calls), [ca.sparsity_cast(s, c.sparsity()) for s, c in zip(symbols, calls)])[0]
+        for s in symbols:
+            with_calls.update(int(r) for r in ca.jacobian_sparsity(g, s).get_triplet()[0])
+        p_all = ca.vertcat(p, *symbols)
+    skipped = with_calls | set(kept)
+    candidates = [i for i in range(g.numel()) if i not in skipped]
+    if len(candidates) == g.numel():
         gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g, lbg, ubg)
         return [int(i) for i in gi], lbx, ubx
-    others = sorted(set(range(g.numel())) - set(kept))
-    gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g[others], lbg[others], ubg[others])
-    return [others[int(i)] for i in gi] + kept, lbx, ubx
+    gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p_all, g[candidates], lbg[candidates], ubg[candidates])
+    if calls:  # the bounds come from rows without calls: the call parameters only appear structurally
+        lbx, ubx = ca.graph_substitute([lbx, ubx], symbols, [ca.MX.zeros(s.sparsity()) for s in symbols])
+    return sorted(with_calls | {candidates[int(i)] for i in gi}) + kept, lbx, ubx
 
 
 class NlpSolver:
@@ -398,11 +419,12 @@ class NlpSolver:
             nlpsol's own ``jac_g`` and ``hess_lag`` (:func:`fatigue_pin.ocp.blocks.nlp_derivatives`)
             or None for CasADi's.
         kept_rows: rows of ``opti.g`` kept as constraints even where they bound one variable.
+        calls: outputs of the function calls in ``opti.g`` (:func:`simple_bounds`).
     """
 
     def __init__(self, opti: ca.Opti, options: SolverOptions, name: str = "fatigue_ocp", progress: Progress = None,
                  label: str = "the NLP", derivatives: Callable[[dict[str, ca.MX]], dict[str, ca.Function] | None] | None = None,
-                 kept_rows: Sequence[int] = ()) -> None:
+                 kept_rows: Sequence[int] = (), calls: Sequence[ca.MX] = ()) -> None:
         t0 = time.perf_counter()
         self._progress = as_reporter(progress)
         self._label = label
@@ -410,7 +432,7 @@ class NlpSolver:
         self.opti = opti
         x, p, f, g = opti.x, opti.p, opti.f, opti.g
         lbg, ubg = opti.lbg, opti.ubg
-        gi, lbx, ubx = simple_bounds(x, p, g, lbg, ubg, kept_rows)
+        gi, lbx, ubx = simple_bounds(x, p, g, lbg, ubg, kept_rows, calls)
         self.n_x = x.numel()
         self.n_p = p.numel()
         self.n_g = len(gi)

@@ -50,7 +50,7 @@ from fatigue_pin.ocp.intervals import IntervalFunctions, rk4
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solution import OcpSolution, ParameterLayout
-from fatigue_pin.ocp.solver import NlpResult, NlpSolver, SolverOptions, simple_bounds
+from fatigue_pin.ocp.solver import NLPSOL_OPTIONS, NlpResult, NlpSolver, SolverOptions, simple_bounds
 from fatigue_pin.ocp.task import check_horizon, joint_target_pairs
 
 #: Integrators of the shooting intervals.
@@ -166,7 +166,7 @@ class Ocp:
         blocks = self._block_derivatives if self._uses_blocks else None
         self.nlp = NlpSolver(opti, self.solver_options, name=f"fatigue_ocp_{self.model.name}_{N}", progress=progress,
                              label=f"the {self.model.name} NLP of {self.n_cycles} cycles", derivatives=blocks,
-                             kept_rows=self.kept_rows)
+                             kept_rows=self.kept_rows, calls=[c.out for c in self._mapped])
         #: compile time paid by this build (s): the library (once per model) or the whole NLP
         self.compile_time_s = self.nlp.compile_time_s + library_compile_s
         self.build_time_s = time.perf_counter() - t0
@@ -214,9 +214,9 @@ class Ocp:
         try:
             probe = self._formulate()
             x, p, f, g = probe.x, probe.p, probe.f, probe.g
-            gi, *_ = simple_bounds(x, p, g, probe.lbg, probe.ubg, self.kept_rows)
+            gi, *_ = simple_bounds(x, p, g, probe.lbg, probe.ubg, self.kept_rows, [c.out for c in self._mapped])
             nlp = {"x": x, "p": p, "f": f, "g": g[gi]}
-            opts: dict = {"print_time": False}
+            opts: dict = {"print_time": False, **NLPSOL_OPTIONS}  # the derivatives the solves will request
             if self._uses_blocks:
                 self.functions.build_blocks(self._differentiated_inputs(x), self.solver_options.hessian,
                                              self.solver_options.dynamics_jacobian)
