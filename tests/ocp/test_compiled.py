@@ -238,6 +238,8 @@ def test_ocp_with_a_compiled_library_matches_the_uncompiled_one(arm26, tmp_path)
     assert {"jblk_F_rb", "hblk_F_rb", "jblk_terms", "hblk_F_fatigue_xia"} <= set(ocp.library.names)
     assert set(ocp.nlp.derivatives) == {"jac_g", "hess_lag"}
     assert all(ocp.functions.blocks[name].hess.is_a("External") for name in ("F_rb", "F_fatigue_xia"))
+    # its blocks give IPOPT every derivative of the rigid body's step: no derivative code of the step
+    assert "F_rb" in ocp.library.names and not ocp.library.derivatives.get("F_rb")
     # F_fatigue (the estimator's, the guesses') is the map of the compiled one-half step: the
     # values and the Jacobian in (m, u, p) of the uncompiled all-halves RK4
     plain = IntervalFunctions(problem, study.transcription())

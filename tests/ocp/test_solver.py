@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import casadi as ca
+import numpy as np
 import pytest
 
 from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.ocp.solver import SolverOptions, _host_key
+from fatigue_pin.ocp.solver import SolverOptions, _host_key, simple_bounds
 
 
 def test_cache_key_names_the_cpu_only_for_native_code():
@@ -150,3 +152,30 @@ def test_blas_threads_set_the_openblas_that_mumps_uses():
     assert threads() == 1
     with pytest.raises(ParameterError, match="blas_threads = -1"):
         SolverOptions(blas_threads=-1)
+
+
+def test_simple_bounds_leave_rows_with_calls_out_of_the_detection():
+    """A row that uses a call is a constraint; the detection does not differentiate it, so a call
+    without derivatives (a step compiled without derivative code) does not stop it; the rows and
+    the bounds are those of CasADi's detection on the same NLP with a differentiable call."""
+    x, p = ca.MX.sym("x", 4), ca.MX.sym("p", 2)
+    a = ca.MX.sym("a")
+    opts = {"enable_forward": False, "enable_reverse": False, "enable_jacobian": False, "enable_fd": False}
+    plain, opaque = (ca.Function("step", [a], [ca.sin(a)], *([opts] if o else [])) for o in (False, True))
+
+    def nlp(step):
+        out = step.map(2)(ca.horzcat(x[0], x[1]))
+        g = ca.vertcat(x[2] - out[0], 2 * x[1], x[3] - out[1], x[0] + x[3], 3 * x[2] - p[0])
+        return g, out
+
+    g, _ = nlp(plain)
+    lbg, ubg = ca.vertcat(0, -1, 0, -p[1], 0), ca.vertcat(0, 1, 0, p[1], 0)
+    gi, lbx, ubx, _, _ = ca.detect_simple_bounds(x, p, g, lbg, ubg)
+    g_opaque, out = nlp(opaque)
+    with pytest.raises(RuntimeError):
+        ca.detect_simple_bounds(x, p, g_opaque, lbg, ubg)
+    rows, lo, hi = simple_bounds(x, p, g_opaque, lbg, ubg, calls=[out])
+    assert rows == [int(i) for i in gi] == [0, 2, 3]
+    bounds = [ca.Function("b", [p], [lo, hi]), ca.Function("b", [p], [lbx, ubx])]
+    for pv in ([0.3, 2.0], [-1.5, 0.5]):
+        assert np.allclose(np.hstack(bounds[0](pv)), np.hstack(bounds[1](pv)))
