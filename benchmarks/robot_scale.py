@@ -15,7 +15,8 @@ Cases (studies):
 * ``panda``: benchmarks/studies/panda_scale.toml (fingers locked, 2 kg at the hand), the same.
 
 Configurations (:data:`CONFIGS`): changes of the study (``--set`` syntax) per option; ``exact`` is
-today's default.
+today's default; ``O1`` and ``O2`` compile the library at -O1 or -O2 (with ``-march=native``)
+instead of the default -O3.
 
 Every run is a child process (its own peak memory, ``ru_maxrss``). First every (case,
 configuration) is built once against the compile cache ``--cache`` (default: a fresh temporary
@@ -58,6 +59,8 @@ CONFIGS: dict[str, dict] = {
     "one-step-substeps2": {"solver.hessian": "one-step", "transcription.substeps": 2},
     "warm": {"horizon.warm_start": True},
     "analytical": {"solver.dynamics_jacobian": "analytical"},
+    "O1": {"solver.compiler_flags": ["-O1", "-march=native"]},
+    "O2": {"solver.compiler_flags": ["-O2", "-march=native"]},
     "euler-step": {"solver.hessian": "euler-step"},
     "analytical-one-step": {"solver.dynamics_jacobian": "analytical", "solver.hessian": "one-step"},
     "analytical-euler-step": {"solver.dynamics_jacobian": "analytical", "solver.hessian": "euler-step"},
