@@ -375,12 +375,6 @@ class SignedTorqueActuators:
         """Joint torque ``tau_plus + tau_minus`` (N m), shape (nv,)."""
         return _column(tau_plus, self.nv, "tau_plus") + _column(tau_minus, self.nv, "tau_minus")
 
-    def halves_torque(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
-        """Torques interleaved in half order ``(tp0, tm0, tp1, tm1, ...)`` (N m), shape (n_halves,)."""
-        tp = _column(tau_plus, self.nv, "tau_plus")
-        tm = _column(tau_minus, self.nv, "tau_minus")
-        return ca.vertcat(*[x for j in range(self.nv) for x in (tp[j], tm[j])])
-
     def target_loads(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
         """Target loads ``TL`` (dimensionless), shape (n_halves,): ``tau_plus[j] / tau_upper[j]`` and
         ``tau_minus[j] / tau_lower[j]`` interleaved in half order."""
