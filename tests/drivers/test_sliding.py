@@ -304,3 +304,21 @@ def test_stitched_nodes_of_overlapping_windows_are_the_task_nodes():
 
     study = small_curl("sliding").replace({"task.final_node_offset": -1})
     assert stitched_nodes(study.task(), 0.0, 3, 1, [0, 1, 2]) == [0, 10, 20, 30, 40, 49]  # = Task.nodes over 5 cycles
+
+def test_the_ending_says_why_the_run_ended(full_run):
+    """A run ends because the arm can no longer do the next K cycles (said in those words, with
+    the window, its cycles and how the solver ended), or at the max_cycles cap."""
+    from conftest import small_curl
+    from fatigue_pin.drivers.sliding import ending
+    from fatigue_pin.io.study import run_study
+
+    assert ending(full_run[0]) == "stopped at the cap of 5 cycles (horizon.max_cycles), not by fatigue"
+    tired = run_study(small_curl("sliding").replace({"fatigue.F": 5.0})).run  # tires within a few cycles
+    last = tired.windows[-1]
+    assert not last["converged"] and tired.n_cycles == repetitions(int(tired.windows["converged"].sum()), SlidingSettings())
+    first, status, iterations = int(last["first_cycle"]), last["status"].decode(), int(last["iterations"])
+    assert ending(tired) == (f"then the arm was too tired to go on: the solver found no motion for the next 3 cycles "
+                             f"({first + 1}-{first + 3}) from the end of cycle {first} (window {int(last['index'])}: {status} "
+                             f"after {iterations} iterations)")
+    cold = run_study(small_curl("sliding").replace({"fatigue.F": 10.0})).run  # the first window already fails
+    assert ending(cold).startswith("the arm could not do the first 3 cycles (the solver found no motion: ")
