@@ -118,6 +118,33 @@ def median_real_time_factor(windows: np.ndarray, advanced_s: float) -> float:
     """Median :func:`real_time_factors` of the converged windows (NaN when none converged)."""
     ok = np.asarray(windows["converged"], dtype=bool) if len(windows) else np.zeros(0, dtype=bool)
     return float(np.median(real_time_factors(windows, advanced_s)[ok])) if ok.any() else float("nan")
+
+
+def ending(run: RunResult) -> str:
+    """Why a sliding-horizon run (a :class:`RunResult` of :meth:`SlidingHorizon.run`) ended, in
+    words for beside its repetition count: the arm could no longer do the next K cycles (the
+    window that failed, which cycles it planned, and how the solver ended), the ``max_cycles``
+    cap, an interruption, or a run not finished yet."""
+    a, windows = run.attrs, run.windows
+    solved = 0 if windows is None else len(windows)
+    if a.get("interrupted"):
+        return f"interrupted ({a['interrupted']}) after {solved} windows; --resume continues"
+    if not a.get("finished", False):
+        return f"not finished: {solved} windows solved so far; --resume continues"
+    if solved and not bool(windows["converged"][-1]):
+        last = windows[-1]
+        index, first, K = int(last["index"]), int(last["first_cycle"]), int(a["window"])
+        status, iterations = last["status"].decode(), int(last["iterations"])
+        how = (f"its limit of {iterations} iterations" if status.startswith("Maximum_Iterations")
+               else f"{status} after {iterations} iterations")
+        if first == 0:
+            return f"the arm could not do the first {K} cycles (the solver found no motion: {how})"
+        return (f"then the arm was too tired to go on: the solver found no motion for the next {K} cycles ({first + 1}-{first + K}) "
+                f"from the end of cycle {first} (window {index}: {how})")
+    cap = a.get("max_cycles", -1)
+    if cap is not None and int(cap) > 0 and run.n_cycles >= int(cap):
+        return f"stopped at the cap of {int(cap)} cycles (horizon.max_cycles), not by fatigue"
+    return "finished"
 def stitched_nodes(task: Task, at: float | None, window: int, advance: int, first_cycles: Sequence[int]) -> list[int]:
     """Nodes of a stitched run where the windows put the task's phase ``at`` (every node for
     ``None``), in order.
