@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import re
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -218,10 +219,26 @@ IN_PROGRESS_SUFFIX = "_in_progress"
 #: Groups of a result file that hold no user run: search tables and the searches' step runs.
 RESERVED_GROUPS = ("search", "searched")
 #: The grammar of run names, as said in messages and docs/results.md.
-RUN_NAME_GRAMMAR = ("segments of letters, digits and _ - . + = , separated by '/' (none empty, none starting with "
-                    "'.'), at most 200 characters, not under search/ or searched/, not ending with _failed_window or "
-                    "_in_progress")
-_SEGMENT = re.compile(r"[A-Za-z0-9_+=,-][A-Za-z0-9_.+=,-]*")
+RUN_NAME_GRAMMAR = ("segments of letters and digits of any script and _ - . + = , separated by '/' (none empty, none "
+                    "starting with '.'), at most 200 characters, not under search/ or searched/, not ending with "
+                    "_failed_window or _in_progress")
+#: Characters of a run name besides letters, digits and their combining marks (Unicode categories
+#: L, M, N: HDF5 stores names as UTF-8).
+_NAME_MARKS = "_.+=,-"
+
+
+def _name_character(c: str) -> bool:
+    return c in _NAME_MARKS or unicodedata.category(c)[0] in "LMN"
+
+
+def _bad_character(name: str) -> str:
+    """`` ('x', U+0078)``-style words naming the first character of ``name`` a run name cannot
+    hold, or '' if there is none."""
+    bad = next((c for c in name if c != "/" and not _name_character(c)), None)
+    if bad is None:
+        return ""
+    shown = repr(bad) if bad.isprintable() and not bad.isspace() else "a space" if bad == " " else "a control character"
+    return f" holds {shown} (U+{ord(bad):04X}), which is not allowed;"
 
 
 def check_run_name(name: object, internal: bool = False) -> str:
@@ -243,8 +260,8 @@ def check_run_name(name: object, internal: bool = False) -> str:
     if not isinstance(name, str) or not name or len(name) > 200:
         raise bad
     segments = name.split("/")
-    if not all(_SEGMENT.fullmatch(s) for s in segments):
-        raise bad
+    if not all(s and s[0] != "." and all(_name_character(c) for c in s) for s in segments):
+        raise ParameterError(f"run name {name!r}:{_bad_character(name)} expected {RUN_NAME_GRAMMAR}")
     own = name.endswith(FAILED_WINDOW_SUFFIX) or name.endswith(IN_PROGRESS_SUFFIX)  # the drivers name these
     if segments[0] == "search" or not internal and (segments[0] in RESERVED_GROUPS or own):
         raise bad

@@ -40,10 +40,27 @@ def test_names_that_collide_with_the_files_structure_delete_nothing(filled, name
 
 
 @pytest.mark.parametrize("name", ["", ".", "..", "/", "a//b", "/a", "a/", "a/./b", "a/../b", ".hidden", "a b", "a\nb", "a\\b",
-                                  "search", "search/x", "searched/x/N1", "full/x_failed_window", "x" * 201, "ünïcode", None, 3])
+                                  "search", "search/x", "searched/x/N1", "full/x_failed_window", "x" * 201, "bïcèps_💪 run", None, 3])
 def test_the_grammar_refuses(name):
-    with pytest.raises(ParameterError, match="expected segments of letters, digits"):
+    with pytest.raises(ParameterError, match="expected segments of letters and digits of any script"):
         check_run_name(name)
+
+
+@pytest.mark.parametrize("name, shown", [("bïcèps_💪 run", "'💪' (U+1F4AA)"), ("a b", "a space (U+0020)"),
+                                         ("a\nb", "a control character (U+000A)"), ("x/y\\z", "'\\\\' (U+005C)")])
+def test_a_refused_name_names_the_character_it_cannot_hold(name, shown):
+    with pytest.raises(ParameterError) as err:
+        check_run_name(name)
+    assert f"holds {shown}, which is not allowed" in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("name", ["bïcèps_run", "ünïcode/x", "бицепс", "二頭筋_3.6kg", "x\u0308"])
+def test_letters_of_any_script_are_letters(name, tmp_path):
+    """HDF5 stores names as UTF-8: a run named in any script is written and read back by its name."""
+    assert check_run_name(name) == name
+    path = tmp_path / "runs.h5"
+    write_run(path, make_run(name))
+    assert list_runs(path) == [name] and read_run(path, name).name == name
 
 
 @pytest.mark.parametrize("name", ["full/torque_S10", "sliding/physiological_3.6kg_1s", "a", "x/y/z", "S1e-05", "a=b,c+d"])
