@@ -437,7 +437,8 @@ def _open(path: str | Path) -> h5py.File:
         raise ResultFileError(f"{str(path)!r} is not a readable HDF5 file: it is truncated or damaged ({reason}); "
                               "expected a complete result file") from None
     try:
-        _layout_of(h5, path)
+        with _reading(f"the layout of {str(path)!r}"):  # a damaged root object raises KeyError, RuntimeError, ...
+            _layout_of(h5, path)
     except BaseException:
         h5.close()
         raise
