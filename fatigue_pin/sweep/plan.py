@@ -42,6 +42,7 @@ from typing import Any
 
 from fatigue_pin.core.errors import FatiguePinError, SweepError
 from fatigue_pin.io.study import Study, StudyError
+from fatigue_pin.core.text import shown
 
 #: Keys a sweep file may hold at its top level.
 SWEEP_KEYS = ("base", "grid", "cases", "description")
@@ -77,7 +78,7 @@ def study_id(text: str) -> str:
 
 
 def _show(values: dict[str, Any]) -> str:
-    return ", ".join(f"{k} = {v!r}" for k, v in values.items()) or "the base study"
+    return ", ".join(f"{k} = {shown(v)}" for k, v in values.items()) or "the base study"
 
 
 @dataclass(frozen=True)
@@ -146,18 +147,18 @@ class Sweep:
         base = cls._base(data.get("base"), Path(root), source)
         grid_table = data.get("grid", {})
         if not isinstance(grid_table, dict):
-            raise SweepError(f"{source}: grid = {grid_table!r}: expected a table of dotted keys to lists of values")
+            raise SweepError(f"{source}: grid = {shown(grid_table)}: expected a table of dotted keys to lists of values")
         grid = _flatten(grid_table, base.data)
         for key, values in grid.items():
             if not isinstance(values, list):
-                raise SweepError(f"{source}: [grid] {key} = {values!r}: expected a list of values")
+                raise SweepError(f"{source}: [grid] {key} = {shown(values)}: expected a list of values")
             if not values:
                 raise SweepError(f"{source}: [grid] {key} is an empty list; expected at least one value")
             for value in values:  # each value alone, so the message names it
                 try:
                     base.replace({key: value})
                 except StudyError as exc:
-                    raise SweepError(f"{source}: [grid] {key} = {value!r}: {exc}") from None
+                    raise SweepError(f"{source}: [grid] {key} = {shown(value)}: {exc}") from None
         raw_cases = data.get("cases", None)
         cases: list[dict[str, Any]] = []
         if raw_cases is not None:
