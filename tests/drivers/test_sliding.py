@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.io.results import list_runs, read_run
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings, repetitions
 from fatigue_pin.io.results import ResultFile
@@ -35,9 +36,9 @@ def test_window_count_rule(full_run):
     assert run.windows.shape == (3,)  # 5 cycles kept with a 3-cycle window advancing 1
     assert run.windows["converged"].all()
     assert list(run.windows["first_cycle"]) == [0, 1, 2]
-    assert run.n_cycles == 5 == repetitions(3, SlidingSettings())
+    assert run.n_cycles == 5 == repetitions(3, SlidingSettings(window=3))
     assert run.q.shape == (5 * 10 + 1, 2) and run.tau_plus.shape == (50, 2)
-    assert repetitions(19, SlidingSettings()) == 21
+    assert repetitions(19, SlidingSettings(window=3)) == 21
     assert repetitions(4, SlidingSettings(window=4, advance=2)) == 10
 
 
@@ -124,7 +125,7 @@ def test_resume_refuses_other_settings(full_run, small_study, arm26):
     from fatigue_pin.io.results import ResultFileError
 
     _, out = full_run
-    other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(max_cycles=5), small_study.transcription(),
+    other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(window=3, max_cycles=5), small_study.transcription(),
                            small_study.solver())
     with pytest.raises(ResultFileError, match="weights"):
         other.run(ResultFile(out), name=read_run(out).name, resume=True)
@@ -187,7 +188,7 @@ def test_copied_fatigue_guess_jumps_back_at_cycle_boundaries(small_problem, smal
     assert not np.allclose(integrated[n:, fat], copied[n:, fat])  # rolled forward, no jump back
     np.testing.assert_array_equal(guesses["copy"][1], guesses["integrate"][1])
     with pytest.raises(Exception, match="guess_fatigue"):
-        SlidingSettings(guess_fatigue="verbatim")
+        SlidingSettings(window=3, guess_fatigue="verbatim")
 
 
 def test_real_time_factor_of_every_window_and_the_runs_median(full_run, runner):
@@ -290,3 +291,17 @@ def test_windows_advancing_their_length_start_where_the_previous_one_ended(targe
     assert stitched_nodes(study.task(), 0.0, 1, 1, [0, 1, 2]) == [0, 9, 19, 29]
     assert stitched_nodes(study.task(), 0.5, 1, 1, [0, 1, 2]) == [5, 15, 25]
     assert stitched_nodes(study.task(), 0.0, 3, 1, [0, 1, 2]) == [0, 10, 20, 30, 40, 49]  # = Task.nodes over 5 cycles
+
+
+def test_the_window_has_no_default(small_problem):
+    """A general class carries no paper number: the window (the paper's is 3) must be given."""
+    with pytest.raises(TypeError, match="window"):
+        SlidingSettings()
+    with pytest.raises(TypeError, match="sliding"):
+        SlidingHorizon(small_problem)
+    with pytest.raises(ParameterError, match="expected SlidingSettings"):
+        SlidingHorizon(small_problem, None)
+    from fatigue_pin.drivers.mpc import ClosedLoop
+
+    with pytest.raises(ParameterError, match="expected SlidingSettings"):
+        ClosedLoop(small_problem)
