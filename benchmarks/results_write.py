@@ -19,42 +19,17 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 from fatigue_pin.robot.model import bundled_urdf
-from fatigue_pin.io.results import WINDOW_DTYPE, RunResult, torque_limits_at_cycle_ends, write_run
+from fatigue_pin.drivers.synthetic import synthetic_run
+from fatigue_pin.io.results import RunResult, write_run
 
 N_PER_CYCLE = 50
 
 
 def make_run(name: str, cycles: int, windows: int | None = None, seed: int = 0) -> RunResult:
-    nodes = cycles * N_PER_CYCLE + 1
-    rng = np.random.default_rng(seed)
-    mf = np.linspace(0, 0.5, nodes)[:, None] * np.ones((1, 4))
-    table = None
-    if windows is not None:
-        table = np.array([(i, i, b"Solve_Succeeded", True, 40, 0.3, 1.0) for i in range(windows)], dtype=WINDOW_DTYPE)
-    return RunResult(
-        name=name,
-        attrs={"horizon": "full" if windows is None else "sliding", "converged": True, "n_cycles": cycles,
-               "status": "Solve_Succeeded", "wall_time_s": 1.0,
-               "tau_limits": np.array([50.0, -50.0, 50.0, -50.0])},
-        t=np.linspace(0, cycles, nodes),
-        q=rng.normal(size=(nodes, 2)),
-        qdot=rng.normal(size=(nodes, 2)),
-        tau_plus=rng.uniform(0, 50, size=(nodes - 1, 2)),
-        tau_minus=-rng.uniform(0, 50, size=(nodes - 1, 2)),
-        fatigue={"ma": rng.uniform(size=(nodes, 4)), "mr": rng.uniform(size=(nodes, 4)), "mf": mf},
-        cycle_costs=rng.uniform(size=(cycles, 4)),
-        torque_limits=torque_limits_at_cycle_ends(mf, np.array([50, -50, 50, -50]), N_PER_CYCLE),
-        joint_names=("shoulder", "elbow"),
-        actuator_names=("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus"),
-        cost_terms=("posture", "torque_rate", "fatigue", "torque"),
-        cycle_wall_time_s=np.ones(cycles),
-        windows=table,
-        urdf=bundled_urdf().read_text(),
-        fatigued=mf,
-    )
+    """A run of the paper's size (:func:`fatigue_pin.drivers.synthetic.synthetic_run`)."""
+    return synthetic_run(name, cycles, N_PER_CYCLE, windows=windows, seed=seed, mf_end=0.5, urdf=bundled_urdf().read_text(),
+                         attrs={"status": "Solve_Succeeded", "wall_time_s": 1.0})
 
 
 def timed(base: Path, work: Path, run: RunResult, repeats: int) -> float:

@@ -42,7 +42,7 @@ def main() -> None:
     solver = dataclasses.replace(study.solver(), compile_mode=args.compile_mode, derivative_blocks=blocks)
     print(f"compile mode {args.compile_mode}, derivative blocks {args.derivative_blocks}")
     t0 = time.perf_counter()
-    runner = SlidingHorizon(study.problem(), SlidingSettings(max_cycles=args.max_cycles), study.transcription(), solver)
+    runner = SlidingHorizon(study.problem(), dataclasses.replace(study.horizon_settings().sliding_settings(), max_cycles=args.max_cycles), study.transcription(), solver)
     print(f"build {runner.ocp.build_time_s:.1f} s (compile {runner.ocp.compile_time_s:.1f} s) in {time.perf_counter() - t0:.1f} s")
     totals, normals, terminals, reps = [], [], [], []
     for r in range(args.runs):

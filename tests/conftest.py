@@ -8,6 +8,7 @@ import pytest
 from fatigue_pin.io.results import WINDOW_DTYPE, RunResult, torque_limits_at_cycle_ends
 
 from fatigue_pin.drivers.full import OcpBuilder
+from fatigue_pin.drivers.synthetic import synthetic_run
 from fatigue_pin.robot.model import load_model
 from fatigue_pin.paper.curl import curl_study
 
@@ -44,28 +45,8 @@ def build(small_problem, small_study):
 
 
 def make_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10) -> RunResult:
-    nodes = cycles * n + 1
-    rng = np.random.default_rng(0)
-    mf = np.linspace(0, 0.3, nodes)[:, None] * np.ones((1, 4))
-    return RunResult(
-        name=name,
-        attrs={"horizon": "full", "cost": "torque", "S": 10.0, "converged": True, "n_cycles": cycles,
-               "tau_limits": np.array([50.0, -50.0, 50.0, -50.0])},
-        t=np.linspace(0, cycles, nodes),
-        q=rng.normal(size=(nodes, 2)),
-        qdot=rng.normal(size=(nodes, 2)),
-        tau_plus=rng.uniform(0, 50, size=(nodes - 1, 2)),
-        tau_minus=-rng.uniform(0, 50, size=(nodes - 1, 2)),
-        fatigue={"ma": rng.uniform(size=(nodes, 4)), "mr": rng.uniform(size=(nodes, 4)), "mf": mf},
-        cycle_costs=rng.uniform(size=(cycles, 4)),
-        torque_limits=torque_limits_at_cycle_ends(mf, np.array([50, -50, 50, -50]), n),
-        fatigued=mf,
-        joint_names=("shoulder", "elbow"),
-        actuator_names=("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus"),
-        cost_terms=("posture", "torque_rate", "fatigue", "torque"),
-        cycle_wall_time_s=np.ones(cycles),
-        urdf="<robot name='x'/>",
-    )
+    """A synthetic run of ``cycles`` cycles of ``n`` intervals (:func:`fatigue_pin.drivers.synthetic.synthetic_run`)."""
+    return synthetic_run(name, cycles, n)
 
 
 HALVES = ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")

@@ -25,6 +25,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.text import shown
 
 #: The default of a field that has none (the setting is required).
 REQUIRED = dataclasses.MISSING
@@ -120,7 +121,7 @@ def check_message(cls: type, f: dataclasses.Field, value: Any) -> str | None:
         ok = bool(check(value))
     except (TypeError, ValueError, ArithmeticError):
         ok = False
-    return None if ok else f"{cls.__name__}.{f.name} = {value!r}: expected {expected_of(f)}"
+    return None if ok else f"{cls.__name__}.{f.name} = {shown(value)}: expected {expected_of(f)}"
 
 
 def check_values(cls: type, values: Mapping[str, Any], error: type[Exception] = ParameterError) -> None:

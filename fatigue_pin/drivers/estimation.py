@@ -43,6 +43,7 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
 from fatigue_pin.ocp.transcription import IntervalFunctions
+from fatigue_pin.core.text import shown
 
 #: Estimators of a closed loop.
 ESTIMATORS = ("open-loop", "mhe")
@@ -50,7 +51,7 @@ ESTIMATORS = ("open-loop", "mhe")
 
 def _positive(owner: str, value: object, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)) or value <= 0:
-        raise ParameterError(f"{owner} = {value!r}: expected {what}")
+        raise ParameterError(f"{owner} = {shown(value)}: expected {what}")
     return float(value)
 
 
@@ -82,7 +83,7 @@ class MheSettings:
         if isinstance(self.cycles, bool) or not isinstance(self.cycles, int) or self.cycles < 1:
             raise ParameterError(f"mpc.mhe.cycles = {self.cycles!r}: expected an integer number of cycles >= 1")
         if isinstance(self.params, str) or not all(isinstance(p, str) for p in self.params):
-            raise ParameterError(f"mpc.mhe.params = {self.params!r}: expected a list of fatigue parameter names, e.g. ['F', 'R']")
+            raise ParameterError(f"mpc.mhe.params = {shown(self.params)}: expected a list of fatigue parameter names, e.g. ['F', 'R']")
         object.__setattr__(self, "params", tuple(self.params))
         for key in ("probe_std", "saturation_std", "state_std", "param_std"):
             object.__setattr__(self, key, _positive(f"mpc.mhe.{key}", getattr(self, key), "a standard deviation > 0"))

@@ -210,7 +210,7 @@ class ClosedLoop:
         problem: the controller's problem (its model).
         plant_problem: the plant's problem (true payload and fatigue parameters); default
             ``problem``. Its state layout must be the controller's.
-        sliding: the window (K, end tolerance, max_cycles, iteration limits, guess_fatigue).
+        sliding: the window (K, end tolerance, max_cycles, iteration limits, guess_fatigue); required.
         mpc: re-planning, estimator and probes; plant: noise, disturbance, seed, integrator.
         transcription: as for :class:`SlidingHorizon`.
         solver: as for :class:`SlidingHorizon`.
@@ -224,7 +224,10 @@ class ClosedLoop:
                  progress: Progress = None) -> None:
         self.problem = problem
         self.plant_problem = plant_problem or problem
-        self.sliding = sliding or SlidingSettings()
+        if not isinstance(sliding, SlidingSettings):
+            raise ParameterError(f"ClosedLoop: sliding = {sliding!r}: expected SlidingSettings (the controller's window is "
+                                 "required, e.g. SlidingSettings(window=3))")
+        self.sliding = sliding
         self.mpc = mpc or MpcSettings()
         self.plant_settings = plant or PlantSettings()
         self.transcription = transcription or Transcription()

@@ -34,6 +34,7 @@ from scipy.integrate import solve_ivp
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.problem import Problem
+from fatigue_pin.core.text import shown
 
 #: Integrators of the plant.
 PLANT_INTEGRATORS = ("rk4", "rk45")
@@ -43,7 +44,7 @@ _MEASURE, _PROBE, _DISTURB = 0, 1, 2
 
 def _std(owner: str, value: object, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)) or value < 0:
-        raise ParameterError(f"{owner} = {value!r}: expected a standard deviation >= 0 ({unit})")
+        raise ParameterError(f"{owner} = {shown(value)}: expected a standard deviation >= 0 ({unit})")
     return float(value)
 
 
@@ -53,7 +54,7 @@ def _per_joint(owner: str, value: object, what: str) -> tuple[float, ...] | floa
     for v in values:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)) or (what == "std" and v < 0):
             expected = "a standard deviation >= 0 (N m)" if what == "std" else "a torque (N m)"
-            raise ParameterError(f"{owner} = {value!r}: expected {expected}, or a list of them (one per joint)")
+            raise ParameterError(f"{owner} = {shown(value)}: expected {expected}, or a list of them (one per joint)")
     return tuple(float(v) for v in values) if isinstance(value, (list, tuple)) else float(value)
 
 
@@ -148,7 +149,7 @@ class PlantSettings:
         for key in ("rtol", "atol"):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0 < v < 1):
-                raise ParameterError(f"plant.{key} = {v!r}: expected a tolerance in (0, 1)")
+                raise ParameterError(f"plant.{key} = {shown(v)}: expected a tolerance in (0, 1)")
 
     @property
     def noisy(self) -> bool:

@@ -31,6 +31,7 @@ from fatigue_pin.core.errors import ParameterError, ResultFileError
 from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, setting
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.core.signals import Interrupted, deferred, signal_name
+from fatigue_pin.core.text import shown
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, in_progress_name, run_attributes, to_run_result
 from fatigue_pin.ocp.guesses import shifted_window_guess
@@ -45,8 +46,9 @@ class SlidingSettings:
     """Settings of a sliding-horizon run.
 
     Attributes:
-        window: cycles per window (K, paper: 3).
-        advance: cycles the window advances (A, paper: 1); 1 <= A <= K.
+        window: cycles per window (K), required: a sliding horizon has no natural window length
+            (the paper's is 3, given by its studies and :data:`fatigue_pin.paper.curl.WINDOW`).
+        advance: cycles the window advances (A); 1 <= A <= K; default 1, the finest step.
         max_cycles: stop once this many cycles are kept (``None``: until a window fails); at least K.
         end_tolerance: end bounds of q and qdot, fraction of their range in [0, 1) (paper: 0.01).
         failure_iterations: IPOPT iteration limit of a window after the first ``warmup`` windows,
@@ -65,7 +67,7 @@ class SlidingSettings:
             its first window cold.
     """
 
-    window: int = setting(3, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
+    window: int = setting(expected="an integer number of cycles >= 1", check=lambda v: is_int(v) and v >= 1)
     advance: int = setting(1, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
     max_cycles: int | None = setting(None, "an integer number of cycles >= 1", lambda v: is_int(v) and v >= 1)
     end_tolerance: float = setting(0.01, "a fraction in [0, 1) of the joint ranges", lambda v: is_number(v) and 0 <= v < 1)
@@ -79,9 +81,9 @@ class SlidingSettings:
     def __post_init__(self) -> None:
         check_fields(self)
         if self.advance > self.window:
-            raise ParameterError(f"SlidingSettings.advance = {self.advance!r}: expected an integer in [1, window = {self.window}]")
+            raise ParameterError(f"SlidingSettings.advance = {shown(self.advance)}: expected an integer in [1, window = {self.window}]")
         if self.max_cycles is not None and self.max_cycles < self.window:
-            raise ParameterError(f"SlidingSettings.max_cycles = {self.max_cycles!r}: expected at least the window, window = {self.window}")
+            raise ParameterError(f"SlidingSettings.max_cycles = {shown(self.max_cycles)}: expected at least the window, window = {self.window}")
 
 
 @dataclass
@@ -181,7 +183,7 @@ class SlidingHorizon:
 
     Args:
         problem: the problem (its initial state starts the first window).
-        sliding: window settings.
+        sliding: window settings (required: the window has no default).
         transcription: discretisation settings.
         solver: IPOPT settings.
         guess: initial guess of the first window (``rest`` or ``physical``).
@@ -190,10 +192,13 @@ class SlidingHorizon:
         progress: where building (a compile) reports itself; default quiet.
     """
 
-    def __init__(self, problem: Problem, sliding: SlidingSettings | None = None, transcription: Transcription | None = None,
+    def __init__(self, problem: Problem, sliding: SlidingSettings, transcription: Transcription | None = None,
                  solver: SolverOptions | None = None, guess: str = "rest", study: str = "",
                  labels: dict[str, Any] | None = None, progress: Progress = None) -> None:
-        self.sliding = sliding or SlidingSettings()
+        if not isinstance(sliding, SlidingSettings):
+            raise ParameterError(f"SlidingHorizon: sliding = {shown(sliding)}: expected SlidingSettings (the window is required, "
+                                 "e.g. SlidingSettings(window=3))")
+        self.sliding = sliding
         self.problem = problem
         self.solver = solver or SolverOptions()
         self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, self.sliding.end_tolerance)

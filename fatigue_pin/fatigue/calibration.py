@@ -40,6 +40,7 @@ from fatigue_pin.core.errors import CalibrationDataError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, check_output_file
 from fatigue_pin.core.settings import check_fields, default_of, is_number, replaced, setting
 from fatigue_pin.fatigue.models import XiaFatigue
+from fatigue_pin.core.text import shown
 
 __all__ = [
     "CalibrationDataError",
@@ -158,9 +159,9 @@ def _check_row(row: int, tl: float, et: float, dc: float, cs: float, source: str
         raise CalibrationDataError(f"{at}: endurance_time_s = {et!r}: expected a time in [{ET_RANGE[0]:g}, {ET_RANGE[1]:g}) s "
                                    "(beyond it the fit's rates over- or underflow)")
     if not (math.isfinite(dc) and 0.0 < dc <= 1.0):
-        raise CalibrationDataError(f"{at}: duty_cycle = {dc!r}: expected a fraction in (0, 1] (1 or empty: sustained)")
+        raise CalibrationDataError(f"{at}: duty_cycle = {shown(dc)}: expected a fraction in (0, 1] (1 or empty: sustained)")
     if dc < 1.0 and not (math.isfinite(cs) and cs > 0.0):
-        raise CalibrationDataError(f"{at}: cycle_s = {cs!r} with duty_cycle {dc!r}: expected a cycle length > 0 (s)")
+        raise CalibrationDataError(f"{at}: cycle_s = {shown(cs)} with duty_cycle {shown(dc)}: expected a cycle length > 0 (s)")
 
 
 def read_endurance_csv(path: str | Path) -> EnduranceData:

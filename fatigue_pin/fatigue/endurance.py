@@ -48,6 +48,7 @@ from fatigue_pin.core.errors import FatiguePinError, OutputLocationError, Parame
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import XiaFatigue
+from fatigue_pin.core.text import shown
 
 __all__ = [
     "FREY_LAW_AVIN_2010",
@@ -133,11 +134,11 @@ def intermittent_et_closed_form(
     TL = _check_load(TL, "intermittent_et_closed_form")
     d = float(duty_cycle)
     if not (math.isfinite(d) and 0.0 < d <= 1.0):
-        raise ParameterError(f"intermittent_et_closed_form: duty_cycle = {duty_cycle!r}: expected a fraction in (0, 1]")
+        raise ParameterError(f"intermittent_et_closed_form: duty_cycle = {shown(duty_cycle)}: expected a fraction in (0, 1]")
     if d == 1.0:
         return sustained_et_closed_form(F, R, TL)
     if cycle_s is None or not (math.isfinite(float(cycle_s)) and float(cycle_s) > 0.0):
-        raise ParameterError(f"intermittent_et_closed_form: cycle_s = {cycle_s!r}: expected a cycle length > 0 (s)")
+        raise ParameterError(f"intermittent_et_closed_form: cycle_s = {shown(cycle_s)}: expected a cycle length > 0 (s)")
     T = float(cycle_s)
     F, R, r = float(F), float(R), float(r)
     L = 1.0 - TL  # failure when mf >= L during an "on" part
@@ -232,9 +233,9 @@ def endurance_time(
     TL = _check_load(TL, "endurance_time")
     d = float(duty_cycle)
     if not (math.isfinite(d) and 0.0 < d <= 1.0):
-        raise ParameterError(f"endurance_time: duty_cycle = {duty_cycle!r}: expected a fraction in (0, 1]")
+        raise ParameterError(f"endurance_time: duty_cycle = {shown(duty_cycle)}: expected a fraction in (0, 1]")
     if d < 1.0 and (cycle_s is None or not (math.isfinite(float(cycle_s)) and float(cycle_s) > 0.0)):
-        raise ParameterError(f"endurance_time: cycle_s = {cycle_s!r}: expected a cycle length > 0 (s) for duty_cycle {d}")
+        raise ParameterError(f"endurance_time: cycle_s = {shown(cycle_s)}: expected a cycle length > 0 (s) for duty_cycle {d}")
     ia, ir = model.state_index("ma"), model.state_index("mr")
 
     def event(t: float, y: np.ndarray) -> float:

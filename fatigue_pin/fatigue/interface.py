@@ -17,6 +17,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.core.text import shown
 
 __all__ = ["FatigueModel", "STABILITY_LIMITS", "check_stabiliser", "check_rate"]
 
@@ -56,10 +57,10 @@ def check_rate(owner: str, name: str, value: object, unit: str) -> float:
     """
     what = "a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite multiplier >= 0 (dimensionless)"
     if isinstance(value, bool) or not isinstance(value, Real):
-        raise ParameterError(f"{owner}.{name} = {value!r}: expected {what}")
+        raise ParameterError(f"{owner}.{name} = {shown(value)}: expected {what}")
     x = float(value)
     if not math.isfinite(x) or x < 0.0:
-        raise ParameterError(f"{owner}.{name} = {x!r}: expected {what}")
+        raise ParameterError(f"{owner}.{name} = {shown(x)}: expected {what}")
     return x
 
 
@@ -220,14 +221,14 @@ def check_stabiliser(params: FatigueModel | float, dt: float, method: str = "rk4
     if key not in STABILITY_LIMITS:
         raise ParameterError(f"check_stabiliser: method = {method!r}: expected one of {sorted(STABILITY_LIMITS)}")
     if isinstance(dt, bool) or not isinstance(dt, Real) or not math.isfinite(float(dt)) or float(dt) <= 0.0:
-        raise ParameterError(f"check_stabiliser: dt = {dt!r}: expected a finite step > 0 (s)")
+        raise ParameterError(f"check_stabiliser: dt = {shown(dt)}: expected a finite step > 0 (s)")
     limit = STABILITY_LIMITS[key]
     if limit is None:
         return None
     z = S * float(dt)
     if z >= limit:
         raise ParameterError(
-            f"stabiliser S = {S!r} 1/s with {method} step dt = {float(dt)!r} s: S*dt = {z:.6g} is outside the "
+            f"stabiliser S = {shown(S)} 1/s with {method} step dt = {float(dt)!r} s: S*dt = {z:.6g} is outside the "
             f"method's stability interval on the real axis (S*dt must be < {limit:.6g}, i.e. S < {limit / float(dt):.6g} 1/s "
             f"or dt < {limit / S:.6g} s); the error of ma + mr + mf would grow instead of decay"
         )

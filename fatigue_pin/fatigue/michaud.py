@@ -12,6 +12,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel, check_stabiliser
+from fatigue_pin.core.text import shown
 
 __all__ = ["MichaudFatigue", "michaud_rhs", "MICHAUD_SOURCE"]
 
@@ -118,7 +119,7 @@ class MichaudFatigue(FatigueModel):
         th = self.effort_threshold
         if not 0.0 < th < 1.0:
             raise ParameterError(
-                f"MichaudFatigue.effort_threshold = {th!r}: expected a target load strictly between 0 and 1 "
+                f"MichaudFatigue.effort_threshold = {shown(th)}: expected a target load strictly between 0 and 1 "
                 "(the effort rate divides by th and by 1 - th)"
             )
 

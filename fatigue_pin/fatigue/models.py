@@ -44,6 +44,7 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel, check_stabiliser
 from fatigue_pin.fatigue.michaud import MichaudFatigue
+from fatigue_pin.core.text import shown
 
 __all__ = [
     "XiaFatigue",
@@ -107,7 +108,7 @@ class XiaFatigue(FatigueModel):
         super().__post_init__()
         x = self.rest_load
         if isinstance(x, bool) or not isinstance(x, Real) or not math.isfinite(float(x)) or not 0.0 <= float(x) <= 1.0:
-            raise ParameterError(f"XiaFatigue.rest_load = {x!r}: expected a target load in [0, 1] "
+            raise ParameterError(f"XiaFatigue.rest_load = {shown(x)}: expected a target load in [0, 1] "
                                  "(1: r acts whenever ma >= TL; 0: only at rest, TL = 0)")
         object.__setattr__(self, "rest_load", float(x))
 

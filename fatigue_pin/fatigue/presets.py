@@ -52,6 +52,7 @@ from typing import NamedTuple
 from fatigue_pin.core.errors import ParameterError, PresetFileError
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model
+from fatigue_pin.core.text import shown
 
 __all__ = [
     "Preset",
@@ -259,13 +260,13 @@ def load_preset_json(path: str | Path) -> FatigueModel:
             raise PresetFileError(f"parameter file {str(p)!r} has no {name!r}: expected the {model!r} parameters {list(cls.param_names)}")
         v = data[name]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-            raise PresetFileError(f"parameter file {str(p)!r}: {name} = {v!r}: expected a finite number")
+            raise PresetFileError(f"parameter file {str(p)!r}: {name} = {shown(v)}: expected a finite number")
         values[name] = float(v)
     for name in cls.option_names:
         if name in data:
             v = data[name]
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
-                raise PresetFileError(f"parameter file {str(p)!r}: {name} = {v!r}: expected a finite number")
+                raise PresetFileError(f"parameter file {str(p)!r}: {name} = {shown(v)}: expected a finite number")
             values[name] = float(v)
     try:
         return fatigue_model(kind, **values)

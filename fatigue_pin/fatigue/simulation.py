@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.fatigue.models import FatigueParams, PARAM_NAMES, fatigue_rhs
+from fatigue_pin.core.text import shown
 
 __all__ = ["FatigueTrajectory", "simulate", "rhs_numeric", "invariant_error"]
 
@@ -120,7 +121,7 @@ def simulate(
     if y0.shape != (3,):
         raise DimensionError(f"m0 of shape {np.shape(m0)}: expected 3 entries (ma, mr, mf)")
     if not math.isfinite(float(t_end)) or float(t_end) <= 0.0:
-        raise ParameterError(f"simulate: t_end = {t_end!r}: expected a finite time > 0 (s)")
+        raise ParameterError(f"simulate: t_end = {shown(t_end)}: expected a finite time > 0 (s)")
     f = params.rhs()
     p = params.as_vector()
     if callable(TL):

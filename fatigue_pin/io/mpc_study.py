@@ -38,6 +38,7 @@ from fatigue_pin.core.errors import StudyError
 from fatigue_pin.io.schema import read_table
 from fatigue_pin.io.study import Study
 from fatigue_pin.io.tables import _toml_key, _toml_value
+from fatigue_pin.core.text import plain, shown
 
 #: Tables of the study a [plant] table may override.
 PLANT_OVERRIDES = ("model", "fatigue")
@@ -85,7 +86,7 @@ def _plant_data(data: dict[str, Any], plant: dict[str, Any]) -> dict[str, Any]:
             raise StudyError(f"unknown key plant.{key}; a plant overrides {list(PLANT_OVERRIDES)} of the study, "
                              f"or sets {list(PLANT_OWN)}")
         if not isinstance(value, dict):
-            raise StudyError(f"plant.{key} = {value!r}: expected a table of the study's [{key}] keys")
+            raise StudyError(f"plant.{key} = {shown(value)}: expected a table of the study's [{key}] keys")
     return _merge(data, overrides)
 
 
@@ -122,12 +123,13 @@ class MpcStudy:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], changes: dict[str, Any] | None = None) -> MpcStudy:
-        """From parsed TOML; ``changes``: dotted keys (``--set``), e.g. ``mpc.replan_every``."""
+        """From parsed TOML; ``changes``: dotted keys (``--set``), e.g. ``mpc.replan_every``.
+        Numpy scalars and arrays, in ``data`` or ``changes``, enter as plain Python values."""
         if not isinstance(data, dict):
-            raise StudyError(f"study = {data!r}: expected a table")
-        data = copy.deepcopy(data)
+            raise StudyError(f"study = {shown(data)}: expected a table")
+        data = plain(data)  # a copy
         base_changes = {}
-        for dotted, value in (changes or {}).items():
+        for dotted, value in plain(changes or {}).items():
             parts = dotted.split(".")
             if parts[0] not in MPC_KEYS:
                 base_changes[dotted] = value
@@ -144,12 +146,12 @@ class MpcStudy:
             study = study.replace(base_changes)
         plant_table = tables.get("plant", {})
         if not isinstance(plant_table, dict):
-            raise StudyError(f"plant = {plant_table!r}: expected a table")
+            raise StudyError(f"plant = {shown(plant_table)}: expected a table")
         plant_study = _plant_study(study.data, plant_table) if plant_table else study
         own = {k: v for k, v in plant_table.items() if k in PLANT_OWN}
         seed = tables.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise StudyError(f"seed = {seed!r}: expected an integer >= 0")
+            raise StudyError(f"seed = {shown(seed)}: expected an integer >= 0")
         _, plant = read_table(PlantSettings, {**own, "seed": seed}, "plant")  # keys from the settings classes
         mpc_table = tables.get("mpc", {})
         _, mpc = read_table(MpcSettings, mpc_table, "mpc")

@@ -37,6 +37,7 @@ from typing import Any, Callable
 
 from fatigue_pin.core.errors import FatiguePinError, StudyError
 from fatigue_pin.core.settings import REQUIRED, default_value, expected_of, is_bool, is_int, is_str
+from fatigue_pin.core.text import shown
 
 
 # -- keys of a table, from the fields of its class ---------------------------------------------------
@@ -183,7 +184,7 @@ def fill(cls: type, table: Any, path: str, *, skip: tuple[str, ...] = (), rename
     errors naming ``path``. Nested tables (``model.payload``) are filled too, without None values."""
     keys = table_keys(cls, skip, renames)
     if not isinstance(table, dict):
-        raise StudyError(f"{path} = {table!r}: expected a table")
+        raise StudyError(f"{path} = {shown(table)}: expected a table")
     unknown = sorted(set(table) - set(keys))
     if unknown:
         raise StudyError(f"unknown key {path}.{unknown[0]}; expected one of {sorted(keys)}")
@@ -192,7 +193,7 @@ def fill(cls: type, table: Any, path: str, *, skip: tuple[str, ...] = (), rename
         if name in table:
             value = table[name]
             if is_toml_number(value) and not math.isfinite(float(value)):
-                raise StudyError(f"{path}.{name} = {value!r}: expected a finite number" + (f" ({key.expected})" if key.expected else ""))
+                raise StudyError(f"{path}.{name} = {shown(value)}: expected a finite number" + (f" ({key.expected})" if key.expected else ""))
         elif key.required and name not in optional:
             raise StudyError(f"missing key {path}.{name}: expected {key.phrase}")
         else:
@@ -232,7 +233,7 @@ def build(cls: type, values: dict[str, Any], path: str, *, skip: tuple[str, ...]
     for name, value in values.items():
         key = keys[name]
         if value is not None and not type_check(key.annotation)(value):
-            raise StudyError(f"{path}.{name} = {value!r}: expected {key.phrase}")
+            raise StudyError(f"{path}.{name} = {shown(value)}: expected {key.phrase}")
     if failure is not None:
         raise StudyError(f"{path}: {failure}")
     return obj
@@ -276,7 +277,7 @@ def restate(message: str, path: str, owners: dict[str, dict[str, str]], values: 
             return f"{path}{rest}"
         key = renames.get(key, key)
         if values is not None and key in values and rest.startswith(" = ") and ": expected" in rest:
-            rest = f" = {values[key]!r}" + rest[rest.index(": expected"):]
+            rest = f" = {shown(values[key])}" + rest[rest.index(": expected"):]
         return f"{path}.{key}{rest}"
     if message.startswith(path.split(".")[0].split("[")[0]):
         return message

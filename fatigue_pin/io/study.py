@@ -19,9 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from fatigue_pin.core.errors import FatiguePinError
+from fatigue_pin.core.text import plain, shown
 from fatigue_pin.io.schema import StudyError, build
 from fatigue_pin.io.tables import SECTIONS, TASK_ARRAYS, fill_placeholders, normalise, task_table, to_toml
 
@@ -57,7 +57,7 @@ class Study:
         """A study from a table (validated, every default filled). The one place values enter a
         study: numpy scalars and arrays become plain Python numbers and lists here, so that the
         study, its TOML and its job id are the same whichever type the caller passed."""
-        return cls(normalise(_plain(data)))
+        return cls(normalise(plain(data)))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "study") -> Study:
@@ -107,7 +107,7 @@ class Study:
 
     def replace(self, changes: dict[str, Any]) -> Study:
         """A copy with dotted keys changed, e.g. ``{"fatigue.S": 0.0, "horizon.kind": "full"}``."""
-        data = _plain(self.data)  # a copy
+        data = plain(self.data)  # a copy
         for dotted, value in changes.items():
             parts = dotted.split(".")
             node = data
@@ -203,20 +203,6 @@ class Study:
     def horizon_settings(self):
         """The :class:`~fatigue_pin.drivers.horizon.Horizon` of ``[horizon]``."""
         return build(SECTIONS["horizon"], self.data["horizon"], "horizon")
-
-
-def _plain(value: Any) -> Any:
-    """A copy of ``value`` made of plain Python values: numpy scalars as Python numbers (bools,
-    strings), numpy arrays and tuples as (nested) lists; tables and lists copied item by item."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())  # a 0-d array gives its scalar
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def _fatigue_model(table: dict[str, Any], parent: dict[str, Any] | None):
@@ -343,7 +329,7 @@ def _run_search(job: _Job) -> StudyResult:
                              end_tolerance=h.end_box)
     run = search.run
     failed = ", ".join(f"{n}: {k}" for n, k in search.failures.items()) or "none"
-    outcome = f"maximum repetitions: {search.max_cycles} (tried N = {[r['n_cycles'] for r in search.tried]}; failed: {failed})"
+    outcome = f"maximum repetitions: {search.max_cycles} (tried N = {shown([r['n_cycles'] for r in search.tried])}; failed: {failed})"
     return StudyResult("max-cycles", run, int(search.max_cycles), search.max_cycles > 0, True,
                        float(run.attrs.get("objective", math.nan)) if run is not None else math.nan,
                        int(sum(int(r["iterations"]) for r in search.tried)), float(sum(float(r["wall_time_s"]) for r in search.tried)),

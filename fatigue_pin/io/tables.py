@@ -19,6 +19,7 @@ from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, Task
 from fatigue_pin.ocp.transcription import Transcription
 from fatigue_pin.robot.model import ModelSource
+from fatigue_pin.core.text import plain, shown
 
 #: The tables read by the class they configure (``[task]``: :func:`task_table`).
 SECTIONS: dict[str, type] = {"model": ModelSource, "transcription": Transcription, "horizon": Horizon, "solver": SolverOptions}
@@ -57,7 +58,7 @@ def _frame_target(t: dict[str, Any], where: str) -> tuple[dict[str, Any], list[A
 def _item_tables(kind: str, tables: Any) -> tuple[list[dict[str, Any]], list[Any]]:
     """The normalised tables of the array ``task.<kind>`` and the task items they build."""
     if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
-        raise StudyError(f"task.{kind} = {tables!r}: expected an array of tables [[task.{kind}]]")
+        raise StudyError(f"task.{kind} = {shown(tables)}: expected an array of tables [[task.{kind}]]")
     out, items = [], []
     for i, t in enumerate(tables):
         where = f"task.{kind}[{i}]"
@@ -80,7 +81,7 @@ def task_table(table: Any) -> tuple[dict[str, Any], tuple[Any, ...]]:
     Task's own keys are checked by Task (the phases of the items against the intervals when the
     whole task is built, :meth:`~fatigue_pin.io.study.Study.task`)."""
     if not isinstance(table, dict):
-        raise StudyError(f"task = {table!r}: expected a table")
+        raise StudyError(f"task = {shown(table)}: expected a table")
     own = table_keys(Task, skip=("items",))
     unknown = sorted(set(table) - set(own) - set(TASK_ARRAYS))
     if unknown:
@@ -117,7 +118,7 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
     from fatigue_pin.fatigue.models import FATIGUE_MODELS
 
     if not isinstance(table, dict):
-        raise StudyError(f"{where} = {table!r}: expected a table")
+        raise StudyError(f"{where} = {shown(table)}: expected a table")
     out = dict(table)
     kind = out.get("model", "xia")
     if not isinstance(kind, str) or kind not in FATIGUE_MODELS:
@@ -130,16 +131,16 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
             raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints' or a parameter of {kind!r}: {list(params)}")
         if key in params and (not is_toml_number(value) or not math.isfinite(float(value)) or value < 0):
             unit = FATIGUE_MODELS[kind].param_units[params.index(key)]
-            raise StudyError(f"{where}.{key} = {value!r}: expected " + ("a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite number >= 0"))
+            raise StudyError(f"{where}.{key} = {shown(value)}: expected " + ("a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite number >= 0"))
         if key in FATIGUE_MODELS[kind].option_names and not is_toml_number(value):
-            raise StudyError(f"{where}.{key} = {value!r}: expected a number")
+            raise StudyError(f"{where}.{key} = {shown(value)}: expected a number")
         if key == "preset" and not isinstance(value, str):
-            raise StudyError(f"{where}.preset = {value!r}: expected a preset name or a JSON file path")
+            raise StudyError(f"{where}.preset = {shown(value)}: expected a preset name or a JSON file path")
     if "joints" in out:
         if where != "fatigue":
             raise StudyError(f"{where}.joints: per-joint overrides only in [fatigue]")
         if not isinstance(out["joints"], dict):
-            raise StudyError(f"fatigue.joints = {out['joints']!r}: expected a table of joint names")
+            raise StudyError(f"fatigue.joints = {shown(out['joints'])}: expected a table of joint names")
         out["joints"] = {j: _fatigue_table(t, f"fatigue.joints.{j}") for j, t in out["joints"].items()}
     for half in ("plus", "minus"):
         if half in out:
@@ -153,13 +154,13 @@ def _costs_table(table: Any) -> dict[str, Any]:
     from fatigue_pin.ocp.costs import COST_KINDS
 
     if not isinstance(table, dict):
-        raise StudyError(f"costs = {table!r}: expected a table of name = weight")
+        raise StudyError(f"costs = {shown(table)}: expected a table of name = weight")
     out: dict[str, Any] = {}
     for name, spec in table.items():
         if is_toml_number(spec):
             spec = {"weight": spec}
         if not isinstance(spec, dict):
-            raise StudyError(f"costs.{name} = {spec!r}: expected a weight or a table {{ weight = ..., ... }}")
+            raise StudyError(f"costs.{name} = {shown(spec)}: expected a weight or a table {{ weight = ..., ... }}")
         spec = dict(spec)
         kind = spec.setdefault("kind", name)
         if not isinstance(kind, str) or kind not in COST_KINDS:
@@ -168,12 +169,12 @@ def _costs_table(table: Any) -> dict[str, Any]:
             raise StudyError(f"missing key costs.{name}.weight: expected a weight >= 0")
         w = spec["weight"]
         if not is_toml_number(w) or not math.isfinite(float(w)) or w < 0:
-            raise StudyError(f"costs.{name}.weight = {w!r}: expected a finite weight >= 0")
+            raise StudyError(f"costs.{name}.weight = {shown(w)}: expected a finite weight >= 0")
         for key in spec:
             if key not in ("weight", "kind", "joints"):
                 raise StudyError(f"unknown key costs.{name}.{key}; expected 'weight', 'kind' or 'joints'")
         if "joints" in spec and not (isinstance(spec["joints"], list) and all(isinstance(j, str) for j in spec["joints"])):
-            raise StudyError(f"costs.{name}.joints = {spec['joints']!r}: expected a list of joint names")
+            raise StudyError(f"costs.{name}.joints = {shown(spec['joints'])}: expected a list of joint names")
         out[name] = spec
     return out
 
@@ -184,7 +185,7 @@ def _costs_table(table: Any) -> dict[str, Any]:
 def normalise(data: dict[str, Any]) -> dict[str, Any]:
     """Validate a parsed study and fill every default (the form stored in result files)."""
     if not isinstance(data, dict):
-        raise StudyError(f"study = {data!r}: expected a table")
+        raise StudyError(f"study = {shown(data)}: expected a table")
     unknown = sorted(set(data) - set(TOP_KEYS))
     if unknown:
         raise StudyError(f"unknown key {unknown[0]!r}; a study has the tables {list(TOP_KEYS[1:])} and a 'name'")
@@ -206,7 +207,7 @@ def normalise(data: dict[str, Any]) -> dict[str, Any]:
     out["costs"] = _costs_table(data.get("costs", {}))
     labels = data.get("labels", {})
     if not isinstance(labels, dict) or not all(isinstance(v, (str, int, float, bool)) for v in labels.values()):
-        raise StudyError(f"labels = {labels!r}: expected a table of strings and numbers")
+        raise StudyError(f"labels = {shown(labels)}: expected a table of strings and numbers")
     out["labels"] = dict(labels)
     fill_placeholders(name, out)  # every placeholder names a key
     return out
@@ -231,6 +232,7 @@ def fill_placeholders(text: str, data: dict[str, Any]) -> str:
 
 
 def _toml_value(v: Any) -> str:
+    v = plain(v)  # numpy scalars and arrays as Python numbers and lists (never 'np.float64(...)')
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
@@ -245,7 +247,7 @@ def _toml_value(v: Any) -> str:
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
         return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    raise StudyError(f"cannot write {v!r} to TOML")
+    raise StudyError(f"cannot write {shown(v)} to TOML")
 
 
 def _toml_key(k: str) -> str:

@@ -35,6 +35,7 @@ import numpy as np
 from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import FatigueParams
+from fatigue_pin.core.text import shown
 
 __all__ = ["ActuatorHalf", "FatigueGroup", "SignedTorqueActuators", "ParamsSpec"]
 
@@ -91,11 +92,11 @@ class ActuatorHalf:
 
     def __post_init__(self) -> None:
         if self.sign not in (1, -1) or isinstance(self.sign, bool):
-            raise ParameterError(f"ActuatorHalf({self.joint!r}).sign = {self.sign!r}: expected +1 or -1")
+            raise ParameterError(f"ActuatorHalf({self.joint!r}).sign = {shown(self.sign)}: expected +1 or -1")
         lim = float(self.tau_limit)
         if not math.isfinite(lim) or lim <= 0.0:
             raise ParameterError(
-                f"ActuatorHalf({self.joint!r}, sign {self.sign:+d}).tau_limit = {self.tau_limit!r}: "
+                f"ActuatorHalf({self.joint!r}, sign {self.sign:+d}).tau_limit = {shown(self.tau_limit)}: "
                 "expected a finite torque magnitude > 0 (N m)"
             )
         object.__setattr__(self, "tau_limit", lim)
@@ -188,9 +189,9 @@ class SignedTorqueActuators:
             raise DimensionError(f"tau_lower {lo.shape}, tau_upper {up.shape}: expected ({nv},) for joints {list(names)}")
         for j, name in enumerate(names):
             if not (lo[j] < 0.0):
-                raise ParameterError(f"tau_lower of joint {name!r} = {lo[j]!r} N m: expected < 0 (limit of the extension half)")
+                raise ParameterError(f"tau_lower of joint {name!r} = {shown(lo[j])} N m: expected < 0 (limit of the extension half)")
             if not (up[j] > 0.0):
-                raise ParameterError(f"tau_upper of joint {name!r} = {up[j]!r} N m: expected > 0 (limit of the flexion half)")
+                raise ParameterError(f"tau_upper of joint {name!r} = {shown(up[j])} N m: expected > 0 (limit of the flexion half)")
         per_joint = cls._resolve_params(names, params)
         halves: list[ActuatorHalf] = []
         for j, name in enumerate(names):
@@ -228,7 +229,7 @@ class SignedTorqueActuators:
             elif isinstance(v, tuple) and len(v) == 2 and all(isinstance(x, FatigueModel) for x in v):
                 out[n] = (v[0], v[1])
             else:
-                raise ParameterError(f"fatigue params of joint {n!r} = {v!r}: expected a FatigueParams or a (plus, minus) pair")
+                raise ParameterError(f"fatigue params of joint {shown(n)} = {shown(v)}: expected a FatigueParams or a (plus, minus) pair")
         return out
 
     # -- sizes and names -----------------------------------------------------------------------

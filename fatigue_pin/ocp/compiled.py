@@ -51,6 +51,7 @@ import casadi as ca
 
 from fatigue_pin.core.errors import CompileError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, locked
+from fatigue_pin.core.text import shown
 
 #: Version of the library layout produced here; part of every cache key.
 FORMAT_VERSION = "3"
@@ -110,7 +111,7 @@ class BuildOptions:
             raise ParameterError(f"BuildOptions.flags = {self.flags!r}: expected a tuple of strings such as ('-O3',)")
         object.__setattr__(self, "flags", tuple(self.flags))
         if self.jobs is not None and (int(self.jobs) != self.jobs or self.jobs < 1):
-            raise ParameterError(f"BuildOptions.jobs = {self.jobs!r}: expected an integer >= 1 or None (every core)")
+            raise ParameterError(f"BuildOptions.jobs = {shown(self.jobs)}: expected an integer >= 1 or None (every core)")
 
     def resolved_jobs(self) -> int:
         """Compiler processes run at once."""

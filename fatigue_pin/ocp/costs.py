@@ -31,6 +31,7 @@ from typing import Callable, Sequence
 import casadi as ca
 
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.text import shown
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ Integrand = Callable[[IntervalVariables], ca.SX]
 
 def _check_weight(owner: str, weight: object) -> float:
     if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(float(weight)) or float(weight) < 0:
-        raise ParameterError(f"{owner}.weight = {weight!r}: expected a finite weight >= 0")
+        raise ParameterError(f"{owner}.weight = {shown(weight)}: expected a finite weight >= 0")
     return float(weight)
 
 

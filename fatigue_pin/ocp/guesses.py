@@ -24,6 +24,7 @@ import pinocchio as pin
 from fatigue_pin.core.errors import ParameterError, TaskError
 from fatigue_pin.ocp.task import FrameOrientation, FrameTarget, JointTarget, Task
 from fatigue_pin.robot.ik import solve_ik
+from fatigue_pin.core.text import shown
 
 if TYPE_CHECKING:
     from fatigue_pin.ocp.transcription import Ocp
@@ -118,7 +119,7 @@ def phase_postures(task: Task, model, q_start: np.ndarray) -> dict[float, np.nda
             data = pm.createData()
             pin.framesForwardKinematics(pm, data, res.q)
             worst = max(positions, key=lambda t: t.distance(data.oMf[pm.getFrameId(t.frame)].translation), default=None)
-            what = (f"frame {worst.frame!r} at {list(worst.position)} m" if worst is not None and res.position_error > 1e-6
+            what = (f"frame {worst.frame!r} at {shown(worst.position)} m" if worst is not None and res.position_error > 1e-6
                     else f"the orientation of {[o.frame for o in orientations]}")
             raise TaskError(
                 f"task targets at phase {at:g}: inverse kinematics cannot place {what} (best: {max(res.position_error, 0):.4f} m "

@@ -36,6 +36,7 @@ from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.core.signals import watch
 from fatigue_pin.core.streams import captured
 from fatigue_pin.ocp.compiled import BuildOptions, cache_folder, cached_build, compile_shared, host_key, verify_entry
+from fatigue_pin.core.text import shown
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
@@ -262,7 +263,7 @@ def _ipopt_refusal(name: str, value: Any, said: list[str], exc: Exception) -> Pa
     if "No such IPOPT option" in text:
         return ParameterError(f"{key}: IPOPT has no option {name!r}; expected an IPOPT option name (IPOPT's options reference)")
     if "type mismatch" in text:
-        return ParameterError(f"{key} = {value!r}: IPOPT expects another type of value for {name!r}")
+        return ParameterError(f"{key} = {shown(value)}: IPOPT expects another type of value for {name!r}")
     settings = [line.split()[0] for line in said if line.split() and not line.startswith(("Setting:", "###", "Category:",
                                                                                             "Description:", "Valid", "Default:"))]
     ranges = [line for line in said if "<" in line and "(" in line]
@@ -272,7 +273,7 @@ def _ipopt_refusal(name: str, value: Any, said: list[str], exc: Exception) -> Pa
         expected = f"one of {settings}"
     else:
         expected = "a valid setting (IPOPT's options reference)"
-    return ParameterError(f"{key} = {value!r}: not a valid IPOPT setting; expected {expected}")
+    return ParameterError(f"{key} = {shown(value)}: not a valid IPOPT setting; expected {expected}")
 
 
 @functools.lru_cache(maxsize=64)

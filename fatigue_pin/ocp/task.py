@@ -32,6 +32,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError, TaskError
+from fatigue_pin.core.text import shown
 
 #: Most shooting intervals of one OCP (a cycle, or all the cycles of a horizon): beyond it the
 #: NLP would not fit in memory (arm26: 16 states and 4 controls per interval).
@@ -43,7 +44,7 @@ def check_horizon(task: "Task", n_cycles: object, what: str = "cycles") -> int:
     intervals_per_cycle`` intervals) stays within :data:`MAX_INTERVALS`; ParameterError naming
     ``what`` otherwise (checked before anything is built or compiled)."""
     if isinstance(n_cycles, bool) or not isinstance(n_cycles, (int, np.integer)) or n_cycles < 1:
-        raise ParameterError(f"{what} = {n_cycles!r}: expected an integer number of cycles >= 1")
+        raise ParameterError(f"{what} = {shown(n_cycles)}: expected an integer number of cycles >= 1")
     n = int(n_cycles)
     if n * task.intervals_per_cycle > MAX_INTERVALS:
         raise ParameterError(f"{what} = {n}: {n} cycles of {task.intervals_per_cycle} intervals are {n * task.intervals_per_cycle} "
@@ -53,14 +54,14 @@ def check_horizon(task: "Task", n_cycles: object, what: str = "cycles") -> int:
 
 def _finite(owner: str, name: str, value: object, what: str = "a finite number") -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(float(value)):
-        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}")
+        raise TaskError(f"{owner}.{name} = {shown(value)}: expected {what}")
     return float(value)
 
 
 def _phase(owner: str, at: object) -> float:
     x = _finite(owner, "at", at, "a phase of the cycle in [0, 1)")
     if not 0.0 <= x < 1.0:
-        raise TaskError(f"{owner}.at = {at!r}: expected a phase of the cycle in [0, 1)")
+        raise TaskError(f"{owner}.at = {shown(at)}: expected a phase of the cycle in [0, 1)")
     return x
 
 
@@ -80,7 +81,7 @@ class JointTarget:
         object.__setattr__(self, "at", _phase(owner, self.at))
         tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0")
         if tol < 0:
-            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a tolerance >= 0")
+            raise TaskError(f"{owner}.tolerance = {shown(self.tolerance)}: expected a tolerance >= 0")
         object.__setattr__(self, "tolerance", tol)
 
 
@@ -97,7 +98,7 @@ class JointRange:
         lo = _finite(owner, "lower", self.lower)
         hi = _finite(owner, "upper", self.upper)
         if lo > hi:
-            raise TaskError(f"{owner}: lower = {lo!r} > upper = {hi!r}; expected lower <= upper")
+            raise TaskError(f"{owner}: lower = {shown(lo)} > upper = {shown(hi)}; expected lower <= upper")
         object.__setattr__(self, "lower", lo)
         object.__setattr__(self, "upper", hi)
 
@@ -140,9 +141,9 @@ def _vector(owner: str, name: str, value: object, n: int = 3, what: str = "3 fin
     try:
         a = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}") from None
+        raise TaskError(f"{owner}.{name} = {shown(value)}: expected {what}") from None
     if a.size != n or not np.all(np.isfinite(a)):
-        raise TaskError(f"{owner}.{name} = {value!r}: expected {what}")
+        raise TaskError(f"{owner}.{name} = {shown(value)}: expected {what}")
     return tuple(float(x) for x in a)
 
 
@@ -192,10 +193,10 @@ class FrameTarget:
         object.__setattr__(self, "at", _phase(owner, self.at))
         tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0 (m)")
         if tol < 0:
-            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected a tolerance >= 0 (m)")
+            raise TaskError(f"{owner}.tolerance = {shown(self.tolerance)}: expected a tolerance >= 0 (m)")
         object.__setattr__(self, "tolerance", tol)
         if self.shape not in FRAME_TARGET_SHAPES:
-            raise TaskError(f"{owner}.shape = {self.shape!r}: expected one of {list(FRAME_TARGET_SHAPES)}")
+            raise TaskError(f"{owner}.shape = {shown(self.shape)}: expected one of {list(FRAME_TARGET_SHAPES)}")
 
     @property
     def name(self) -> str:
@@ -228,7 +229,7 @@ class FrameTarget:
         distance = float(np.linalg.norm(np.asarray(self.position) - centre))
         if distance - self.tolerance * math.sqrt(3) > radius:
             raise TaskError(
-                f"{owner}: position {list(self.position)} m is out of reach: {distance:.3f} m from the base of its chain at "
+                f"{owner}: position {shown(self.position)} m is out of reach: {distance:.3f} m from the base of its chain at "
                 f"{np.round(centre, 3).tolist()}, which reaches at most {radius:.3f} m (the sum of its link lengths)"
             )
         if q_init is not None and self.at == 0.0:  # node 0 is the initial state: it must meet the target
@@ -238,7 +239,7 @@ class FrameTarget:
             if off > 1e-9:
                 raise TaskError(
                     f"{owner}: the initial configuration puts the frame {off:.4f} m outside its phase-0 target "
-                    f"{list(self.position)} +- {self.tolerance} m; set task.q_init to a posture that meets it "
+                    f"{shown(self.position)} +- {self.tolerance:g} m; set task.q_init to a posture that meets it "
                     "(fatigue_pin.robot.ik.solve_ik finds one)"
                 )
 
@@ -263,12 +264,12 @@ class FrameOrientation:
             a = pin.rpy.rpyToMatrix(*_vector(owner, "rotation", a))
         R = np.asarray(_vector(owner, "rotation", a, 9, "a rotation matrix (3 x 3) or 3 roll-pitch-yaw angles (rad)")).reshape(3, 3)
         if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-            raise TaskError(f"{owner}.rotation = {self.rotation!r}: expected a rotation matrix (orthonormal, det 1)")
+            raise TaskError(f"{owner}.rotation = {shown(self.rotation)}: expected a rotation matrix (orthonormal, det 1)")
         object.__setattr__(self, "rotation", tuple(R.reshape(-1)))
         object.__setattr__(self, "at", _phase(owner, self.at))
         tol = _finite(owner, "tolerance", self.tolerance, "an angle in (0, pi] (rad)")
         if not 0 < tol <= math.pi:
-            raise TaskError(f"{owner}.tolerance = {self.tolerance!r}: expected an angle in (0, pi] (rad)")
+            raise TaskError(f"{owner}.tolerance = {shown(self.tolerance)}: expected an angle in (0, pi] (rad)")
         object.__setattr__(self, "tolerance", tol)
 
     @property
@@ -304,7 +305,7 @@ class FramePlane:
         owner = f"FramePlane({self.frame!r})"
         n = np.asarray(_vector(owner, "normal", self.normal, what="3 finite numbers, not all 0"))
         if np.linalg.norm(n) < 1e-12:
-            raise TaskError(f"{owner}.normal = {self.normal!r}: expected 3 finite numbers, not all 0")
+            raise TaskError(f"{owner}.normal = {shown(self.normal)}: expected 3 finite numbers, not all 0")
         object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
         object.__setattr__(self, "offset", _finite(owner, "offset", self.offset, "a finite distance (m)"))
         if self.at is not None:
@@ -333,7 +334,7 @@ class FramePlane:
             h = self.height(frame_placement(model.pin_model, self.frame, q_init).translation)
             if h < -1e-9:
                 raise TaskError(f"{owner}: the initial configuration puts the frame {-h:.4f} m below the plane "
-                                f"normal {list(self.normal)} . p >= {self.offset}; expected q_init on its positive side")
+                                f"normal {shown(self.normal)} . p >= {self.offset:g}; expected q_init on its positive side")
 
 
 TaskItem = Union[JointTarget, JointRange, StateConstraint, FrameTarget, FrameOrientation, FramePlane]
@@ -370,13 +371,13 @@ class Task:
     def __post_init__(self) -> None:
         d = _finite("Task", "cycle_duration", self.cycle_duration, "a duration in seconds > 0")
         if d <= 0:
-            raise TaskError(f"Task.cycle_duration = {self.cycle_duration!r}: expected a duration in seconds > 0")
+            raise TaskError(f"Task.cycle_duration = {shown(self.cycle_duration)}: expected a duration in seconds > 0")
         object.__setattr__(self, "cycle_duration", d)
         n = self.intervals_per_cycle
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer >= 1")
+            raise TaskError(f"Task.intervals_per_cycle = {shown(n)}: expected an integer >= 1")
         if n > MAX_INTERVALS:
-            raise TaskError(f"Task.intervals_per_cycle = {n!r}: expected an integer in [1, {MAX_INTERVALS}]")
+            raise TaskError(f"Task.intervals_per_cycle = {shown(n)}: expected an integer in [1, {MAX_INTERVALS}]")
         object.__setattr__(self, "intervals_per_cycle", int(n))
         object.__setattr__(self, "items", tuple(self.items))
         for item in self.items:
@@ -386,13 +387,13 @@ class Task:
             at = getattr(item, "at", None)
             if at is not None and abs(at * n - round(at * n)) > 1e-9:
                 raise TaskError(
-                    f"task phase at = {at!r} is not a node: at * intervals_per_cycle = {at * n:g}; expected a whole number"
+                    f"task phase at = {shown(at)} is not a node: at * intervals_per_cycle = {at * n:g}; expected a whole number"
                 )
         self._check_one_target_per_node()
         if self.final_node_offset not in (0, -1):
-            raise TaskError(f"Task.final_node_offset = {self.final_node_offset!r}: expected 0 or -1")
+            raise TaskError(f"Task.final_node_offset = {shown(self.final_node_offset)}: expected 0 or -1")
         if not isinstance(self.given_start, (bool, np.bool_)):
-            raise TaskError(f"Task.given_start = {self.given_start!r}: expected true or false")
+            raise TaskError(f"Task.given_start = {shown(self.given_start)}: expected true or false")
         if self.given_start and self.q_init is not None:
             raise TaskError("Task.q_init with given_start: expected no q_init (every solve gives the start state)")
         if self.q_init is not None:
@@ -411,7 +412,7 @@ class Task:
             first = seen.setdefault(key, t)
             if (first.value, first.tolerance) != (t.value, t.tolerance):
                 raise TaskError(
-                    f"task targets {first.value!r} (+- {first.tolerance:g}) and {t.value!r} (+- {t.tolerance:g}) of joint "
+                    f"task targets {shown(first.value)} (+- {first.tolerance:g}) and {shown(t.value)} (+- {t.tolerance:g}) of joint "
                     f"{t.joint!r} at phase {t.at:g}: expected one target per joint and phase"
                 )
 
@@ -426,7 +427,7 @@ class Task:
             if abs(float(q[j]) - t.value) > t.tolerance + slack:
                 raise TaskError(
                     f"task {what} = {[float(x) for x in q]} puts joint {t.joint!r} at {float(q[j])!r}, but its target at phase 0 "
-                    f"is {t.value!r} (+- {t.tolerance:g}); expected the start within the phase-0 target (or no {what}: "
+                    f"is {shown(t.value)} (+- {t.tolerance:g}); expected the start within the phase-0 target (or no {what}: "
                     "it then starts at its targets)"
                 )
 
@@ -494,9 +495,9 @@ class Task:
                 values = (item.value - item.tolerance, item.value + item.tolerance) if isinstance(item, JointTarget) else (item.lower, item.upper)
                 label = "target" if isinstance(item, JointTarget) else "range"
                 if isinstance(item, JointTarget) and not (lo <= item.value <= hi):
-                    raise TaskError(f"task {label} {item.value!r} of joint {item.joint!r} is outside its range [{lo}, {hi}]")
+                    raise TaskError(f"task {label} {shown(item.value)} of joint {item.joint!r} is outside its range [{lo}, {hi}]")
                 if isinstance(item, JointRange) and (values[1] < lo or values[0] > hi):
-                    raise TaskError(f"task range {list(values)} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
+                    raise TaskError(f"task range {shown(values)} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
             elif isinstance(item, StateConstraint):
                 pass  # checked against the layout when the OCP is built
         q = None if self.given_start else self.initial_configuration(model)  # given_start: no posture to check

@@ -52,6 +52,7 @@ from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solution import OcpSolution, ParameterLayout
 from fatigue_pin.ocp.solver import NLPSOL_OPTIONS, NlpResult, NlpSolver, SolverOptions, simple_bounds
 from fatigue_pin.ocp.task import check_horizon, joint_target_pairs
+from fatigue_pin.core.text import shown
 
 #: Integrators of the shooting intervals.
 INTEGRATORS = ("rk4",)
@@ -138,7 +139,7 @@ class Ocp:
         check_horizon(problem.task, n_cycles, "n_cycles")
         (solver or SolverOptions()).check_ipopt()  # before anything is built or compiled
         if end_tolerance is not None and not (0 <= end_tolerance < 1):
-            raise ParameterError(f"end_tolerance = {end_tolerance!r}: expected a fraction in [0, 1) or None")
+            raise ParameterError(f"end_tolerance = {shown(end_tolerance)}: expected a fraction in [0, 1) or None")
         if guess not in GUESSES:
             raise ParameterError(f"guess = {guess!r}: expected one of {list(GUESSES)}")
         self.problem = problem

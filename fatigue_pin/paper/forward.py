@@ -30,6 +30,7 @@ from fatigue_pin.core.files import atomic_write
 from fatigue_pin.fatigue.models import FatigueParams
 from fatigue_pin.fatigue.simulation import FatigueTrajectory, simulate
 from fatigue_pin.paper.curl import elbow_params
+from fatigue_pin.core.text import shown
 
 if TYPE_CHECKING:
     import h5py
@@ -207,7 +208,7 @@ class ForwardStudiesResult:
         for r in self.study2:
             if r.S == float(S) and r.mr0 == float(mr0):
                 return r
-        raise KeyError(f"no study-2 run with S = {S!r}, mr0 = {mr0!r}")
+        raise KeyError(f"no study-2 run with S = {shown(S)}, mr0 = {shown(mr0)}")
 
     @property
     def table(self) -> str:

@@ -20,6 +20,7 @@ from fatigue_pin.robot.dynamics import casadi_aba_derivatives, casadi_dynamics
 from fatigue_pin.robot.urdf import check_urdf_text, quiet_stderr
 from fatigue_pin.core.errors import DimensionError, ModelError
 from fatigue_pin.core.settings import check_fields, setting
+from fatigue_pin.core.text import shown
 
 #: Joint model short names Pinocchio uses for one-DoF revolute and prismatic joints.
 _SUPPORTED_JOINTS = (
@@ -95,16 +96,16 @@ class Payload:
     def __post_init__(self) -> None:
         m = self.mass
         if isinstance(m, bool) or not isinstance(m, (int, float, np.floating, np.integer)) or not math.isfinite(m) or m < 0:
-            raise ModelError(f"payload mass = {m!r}: expected a finite mass >= 0 (kg)")
+            raise ModelError(f"payload mass = {shown(m)}: expected a finite mass >= 0 (kg)")
         object.__setattr__(self, "mass", float(m))
         c = np.asarray(self.com, dtype=float).reshape(-1)
         if c.size != 3 or not np.all(np.isfinite(c)):
-            raise ModelError(f"payload com = {list(np.ravel(self.com))!r}: expected 3 finite numbers (m, in the frame's axes)")
+            raise ModelError(f"payload com = {shown(list(np.ravel(self.com)))}: expected 3 finite numbers (m, in the frame's axes)")
         object.__setattr__(self, "com", tuple(float(x) for x in c))
         if self.inertia is not None:
             i = np.asarray(self.inertia, dtype=float).reshape(-1)
             if i.size != 6 or not np.all(np.isfinite(i)) or np.linalg.eigvalsh(self.inertia_matrix(i)).min() < -1e-12:
-                raise ModelError(f"payload inertia = {list(np.ravel(self.inertia))!r}: expected (ixx, ixy, ixz, iyy, iyz, izz), "
+                raise ModelError(f"payload inertia = {shown(list(np.ravel(self.inertia)))}: expected (ixx, ixy, ixz, iyy, iyz, izz), "
                                  "kg m^2, a positive semi-definite matrix")
             object.__setattr__(self, "inertia", tuple(float(x) for x in i))
 
@@ -337,12 +338,12 @@ def lock_joints(model: pin.Model, locked: Mapping[str, float], path: Path) -> pi
         if name not in movable:
             raise ModelError(f"model.locked_joints: joint {name!r} is not in {path.name}; its joints are {movable}")
         if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(value):
-            raise ModelError(f"model.locked_joints.{name} = {value!r}: expected a finite joint position (rad or m)")
+            raise ModelError(f"model.locked_joints.{name} = {shown(value)}: expected a finite joint position (rad or m)")
         j = model.getJointId(name)
         i = model.joints[j].idx_q
         lo, hi = float(model.lowerPositionLimit[i]), float(model.upperPositionLimit[i])
         if not lo - 1e-12 <= value <= hi + 1e-12:
-            raise ModelError(f"model.locked_joints.{name} = {value!r}: expected a position within the joint's limits [{lo:g}, {hi:g}]")
+            raise ModelError(f"model.locked_joints.{name} = {shown(value)}: expected a position within the joint's limits [{lo:g}, {hi:g}]")
         q_ref[i] = float(value)
         ids.append(j)
     if len(ids) == len(movable):

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, Union
 
 from fatigue_pin.core.errors import FatiguePinError, SweepError
+from fatigue_pin.core.text import shown
 from fatigue_pin.io.mpc_study import MpcStudy, is_closed_loop, is_closed_loop_table
 from fatigue_pin.io.study import Study
 
@@ -82,7 +83,7 @@ def study_id(text: str) -> str:
 
 
 def _show(values: dict[str, Any]) -> str:
-    return ", ".join(f"{k} = {v!r}" for k, v in values.items()) or "the base study"
+    return ", ".join(f"{k} = {shown(v)}" for k, v in values.items()) or "the base study"
 
 
 @dataclass(frozen=True)
@@ -151,18 +152,18 @@ class Sweep:
         base = cls._base(data.get("base"), Path(root), source)
         grid_table = data.get("grid", {})
         if not isinstance(grid_table, dict):
-            raise SweepError(f"{source}: grid = {grid_table!r}: expected a table of dotted keys to lists of values")
+            raise SweepError(f"{source}: grid = {shown(grid_table)}: expected a table of dotted keys to lists of values")
         grid = _flatten(grid_table, base.data)
         for key, values in grid.items():
             if not isinstance(values, list):
-                raise SweepError(f"{source}: [grid] {key} = {values!r}: expected a list of values")
+                raise SweepError(f"{source}: [grid] {key} = {shown(values)}: expected a list of values")
             if not values:
                 raise SweepError(f"{source}: [grid] {key} is an empty list; expected at least one value")
             for value in values:  # each value alone, so the message names it
                 try:
                     base.replace({key: value})
                 except FatiguePinError as exc:
-                    raise SweepError(f"{source}: [grid] {key} = {value!r}: {exc}") from None
+                    raise SweepError(f"{source}: [grid] {key} = {shown(value)}: {exc}") from None
         raw_cases = data.get("cases", None)
         cases: list[dict[str, Any]] = []
         if raw_cases is not None:

@@ -16,6 +16,7 @@ from typing import Sequence
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.text import shown
 
 __all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_METHOD", "METHODS", "VerifyTolerances", "ReferenceIntegration",
            "VerifyCheck", "VerifyReport", "worst"]
@@ -57,7 +58,7 @@ class VerifyTolerances:
         for name in ("gap", "gap_fatigue", "task", "coupling", "bound"):
             value = getattr(self, name)
             if not _is_real(value) or not math.isfinite(value) or value < 0:
-                raise ParameterError(f"VerifyTolerances.{name} = {value!r}: expected a finite tolerance >= 0")
+                raise ParameterError(f"VerifyTolerances.{name} = {shown(value)}: expected a finite tolerance >= 0")
 
 
 @dataclass(frozen=True)
@@ -77,9 +78,9 @@ class ReferenceIntegration:
 
     def __post_init__(self) -> None:
         if not _is_real(self.rtol) or not math.isfinite(self.rtol) or self.rtol <= 0:
-            raise ParameterError(f"rtol = {self.rtol!r}: expected a finite relative tolerance > 0 of the reference integration (verify --rtol)")
+            raise ParameterError(f"rtol = {shown(self.rtol)}: expected a finite relative tolerance > 0 of the reference integration (verify --rtol)")
         if not _is_real(self.atol) or not math.isfinite(self.atol) or self.atol < 0:
-            raise ParameterError(f"atol = {self.atol!r}: expected a finite absolute tolerance >= 0 of the reference integration (verify --atol)")
+            raise ParameterError(f"atol = {shown(self.atol)}: expected a finite absolute tolerance >= 0 of the reference integration (verify --atol)")
         if self.method not in METHODS:
             raise ParameterError(f"method = {self.method!r}: expected one of {list(METHODS)} (verify --method)")
         object.__setattr__(self, "rtol", float(self.rtol))

@@ -33,6 +33,7 @@ import numpy as np
 from fatigue_pin.core.errors import FatiguePinError, ResultFileError
 from fatigue_pin.drivers.run import RunResult
 from fatigue_pin.verify.fatigue_rhs import numpy_rhs
+from fatigue_pin.core.text import shown
 
 __all__ = ["Half", "Stored", "rebuild"]
 
@@ -155,7 +156,7 @@ def _grid(run: RunResult, notes: list[str]) -> tuple[str, float, int, int]:
     except (TypeError, ValueError) as exc:
         raise ResultFileError(f"run {run.name!r}: its grid attributes (dt, intervals_per_cycle, substeps) are not numbers ({exc})") from None
     if not math.isfinite(dt) or dt <= 0:
-        raise ResultFileError(f"run {run.name!r}: interval length dt = {dt!r}; expected a finite duration > 0 (s)")
+        raise ResultFileError(f"run {run.name!r}: interval length dt = {shown(dt)}; expected a finite duration > 0 (s)")
     if n < 1 or substeps < 0:
         raise ResultFileError(f"run {run.name!r}: intervals_per_cycle = {n}, substeps = {substeps}; expected >= 1 and >= 0")
     with np.errstate(invalid="ignore"):
@@ -238,7 +239,7 @@ def _limits(run: RunResult, robot, notes: list[str]) -> np.ndarray:
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ResultFileError):
             raise
-        raise ResultFileError(f"run {run.name!r}: attribute tau_limits = {run.attrs.get('tau_limits')!r} is not a list of numbers") from None
+        raise ResultFileError(f"run {run.name!r}: attribute tau_limits = {shown(run.attrs.get('tau_limits'))} is not a list of numbers") from None
     if not np.all(np.isfinite(signed)) or np.any(signed[0::2] <= 0) or np.any(signed[1::2] >= 0):
         raise ResultFileError(f"run {run.name!r}: torque limits {signed.tolist()} N m; expected finite limits, > 0 for "
                               "each plus half and < 0 for each minus half")

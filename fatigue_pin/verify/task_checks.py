@@ -36,6 +36,7 @@ from fatigue_pin.core.errors import FatiguePinError
 from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget
 from fatigue_pin.verify.report import VerifyCheck, worst
 from fatigue_pin.verify.stored import Stored
+from fatigue_pin.core.text import shown
 
 __all__ = ["task_checks", "KINDS"]
 
@@ -106,14 +107,14 @@ def _frame_target(item: FrameTarget, ctx: _Context) -> Violation:
     nodes = ctx.nodes(item.at)
     p, _ = ctx.frames.placements(item.frame)
     v = [item.distance(p[k]) if np.all(np.isfinite(p[k])) else np.nan for k in nodes]
-    return _worst_at(v, nodes, f"{item.frame} at {list(item.position)} +- {item.tolerance:g} m ({item.shape})")
+    return _worst_at(v, nodes, f"{item.frame} at {shown(item.position)} +- {item.tolerance:g} m ({item.shape})")
 
 
 def _frame_plane(item: FramePlane, ctx: _Context) -> Violation:
     nodes = ctx.nodes(item.at)
     p, _ = ctx.frames.placements(item.frame)
     v = [-item.height(p[k]) for k in nodes]
-    return _worst_at(v, nodes, f"{item.frame} on {list(np.round(item.normal, 6))} . p >= {item.offset:g} m")
+    return _worst_at(v, nodes, f"{item.frame} on {shown(np.round(item.normal, 6))} . p >= {item.offset:g} m")
 
 
 def _frame_orientation(item: FrameOrientation, ctx: _Context) -> Violation:

@@ -546,6 +546,15 @@ CLI_CASES = [c for c in CASES if c.argv is not None]
 API_CASES = [c for c in CASES if c.api is not None]
 
 
+#: Reprs of numpy values that a message must never show (it writes plain numbers and lists).
+NUMPY_REPRS = ("np.float64(", "np.int64(", "np.bool", "array(")
+
+
+def _no_numpy_repr(message: str) -> None:
+    shown = [r for r in NUMPY_REPRS if r in message]
+    assert not shown, f"message shows the numpy repr {shown[0]!r}: {message}"
+
+
 def _snapshot(e: Env) -> dict[Path, bytes]:
     return {p: p.read_bytes() for p in e.watched if p.exists()}
 
@@ -560,6 +569,7 @@ def test_cli_refuses_with_one_line(case, env, capsys):
     assert err.endswith("\n") and err.count("\n") == 1, err  # exactly one line
     assert err.startswith("fatigue-pin: error: ") and "Traceback" not in err
     assert re.search(case.message, err), err
+    _no_numpy_repr(err)
     assert _snapshot(env) == before  # existing result files are byte-for-byte unchanged
     assert not list(env.tmp.glob("**/*.h5.tmp"))
 
@@ -577,6 +587,7 @@ def test_python_api_refuses(case, env):
         case.api(env)
     assert re.search(case.message, str(err.value)), str(err.value)
     assert "\n" not in str(err.value)
+    _no_numpy_repr(str(err.value))
 
 
 def test_the_catalogue_has_every_case():

@@ -8,19 +8,20 @@ import pytest
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.drivers.horizon import Horizon, sliding_defaults
 from fatigue_pin.drivers.sliding import SlidingSettings
+from fatigue_pin.core.settings import default_of
 
 
 def test_the_sliding_settings_take_the_window_from_cycles():
     h = Horizon(kind="sliding", cycles=4, sliding={"advance": 2, "max_cycles": 9})
     assert h.sliding_settings() == SlidingSettings(window=4, advance=2, max_cycles=9)
-    assert h.max_cycles == 9 and h.end_tolerance == SlidingSettings().end_tolerance
+    assert h.max_cycles == 9 and h.end_tolerance == default_of(SlidingSettings, "end_tolerance")
     assert h.run_prefix == "sliding" and h.end_box is None
 
 
 def test_missing_sliding_keys_take_the_sliding_defaults():
     h = Horizon()
     assert h.sliding == sliding_defaults() and "window" not in h.sliding
-    assert h.sliding["warmup"] == SlidingSettings().warmup
+    assert h.sliding["warmup"] == default_of(SlidingSettings, "warmup")
 
 
 def test_every_kind_checks_each_sliding_key_alone():

@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.io.results import list_runs, read_run
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings, repetitions
 from fatigue_pin.io.results import ResultFile
@@ -35,9 +36,9 @@ def test_window_count_rule(full_run):
     assert run.windows.shape == (3,)  # 5 cycles kept with a 3-cycle window advancing 1
     assert run.windows["converged"].all()
     assert list(run.windows["first_cycle"]) == [0, 1, 2]
-    assert run.n_cycles == 5 == repetitions(3, SlidingSettings())
+    assert run.n_cycles == 5 == repetitions(3, SlidingSettings(window=3))
     assert run.q.shape == (5 * 10 + 1, 2) and run.tau_plus.shape == (50, 2)
-    assert repetitions(19, SlidingSettings()) == 21
+    assert repetitions(19, SlidingSettings(window=3)) == 21
     assert repetitions(4, SlidingSettings(window=4, advance=2)) == 10
 
 
@@ -124,7 +125,7 @@ def test_resume_refuses_other_settings(full_run, small_study, arm26):
     from fatigue_pin.io.results import ResultFileError
 
     _, out = full_run
-    other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(max_cycles=5), small_study.transcription(),
+    other = SlidingHorizon(small_curl(cost="torque").problem(arm26), SlidingSettings(window=3, max_cycles=5), small_study.transcription(),
                            small_study.solver())
     with pytest.raises(ResultFileError, match="weights"):
         other.run(ResultFile(out), name=read_run(out).name, resume=True)
@@ -187,7 +188,7 @@ def test_copied_fatigue_guess_jumps_back_at_cycle_boundaries(small_problem, smal
     assert not np.allclose(integrated[n:, fat], copied[n:, fat])  # rolled forward, no jump back
     np.testing.assert_array_equal(guesses["copy"][1], guesses["integrate"][1])
     with pytest.raises(Exception, match="guess_fatigue"):
-        SlidingSettings(guess_fatigue="verbatim")
+        SlidingSettings(window=3, guess_fatigue="verbatim")
 
 
 def test_real_time_factor_of_every_window_and_the_runs_median(full_run, runner):
@@ -315,10 +316,24 @@ def test_the_ending_says_why_the_run_ended(full_run):
     assert ending(full_run[0]) == "stopped at the cap of 5 cycles (horizon.max_cycles), not by fatigue"
     tired = run_study(small_curl("sliding").replace({"fatigue.F": 5.0})).run  # tires within a few cycles
     last = tired.windows[-1]
-    assert not last["converged"] and tired.n_cycles == repetitions(int(tired.windows["converged"].sum()), SlidingSettings())
+    assert not last["converged"] and tired.n_cycles == repetitions(int(tired.windows["converged"].sum()), SlidingSettings(window=3))
     first, status, iterations = int(last["first_cycle"]), last["status"].decode(), int(last["iterations"])
     assert ending(tired) == (f"then the arm was too tired to go on: the solver found no motion for the next 3 cycles "
                              f"({first + 1}-{first + 3}) from the end of cycle {first} (window {int(last['index'])}: {status} "
                              f"after {iterations} iterations)")
     cold = run_study(small_curl("sliding").replace({"fatigue.F": 10.0})).run  # the first window already fails
     assert ending(cold).startswith("the arm could not do the first 3 cycles (the solver found no motion: ")
+
+
+def test_the_window_has_no_default(small_problem):
+    """A general class carries no paper number: the window (the paper's is 3) must be given."""
+    with pytest.raises(TypeError, match="window"):
+        SlidingSettings()
+    with pytest.raises(TypeError, match="sliding"):
+        SlidingHorizon(small_problem)
+    with pytest.raises(ParameterError, match="expected SlidingSettings"):
+        SlidingHorizon(small_problem, None)
+    from fatigue_pin.drivers.mpc import ClosedLoop
+
+    with pytest.raises(ParameterError, match="expected SlidingSettings"):
+        ClosedLoop(small_problem)

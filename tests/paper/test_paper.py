@@ -9,7 +9,7 @@ import pytest
 
 from conftest import small_curl
 from fatigue_pin.drivers.full import OcpBuilder
-from fatigue_pin.paper.curl import COSTS, VARIANTS, authors_variant_dict, curl_study
+from fatigue_pin.paper.curl import COSTS, VARIANTS, WINDOW, authors_variant_dict, curl_study
 from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
 from fatigue_pin.io.study import Study
 
@@ -64,7 +64,7 @@ def test_full_horizon_parity_with_the_previous_formulation(arm26, options, cycle
 
 def test_sliding_horizon_parity_with_the_previous_formulation(arm26):
     study = small_curl("sliding", cost="fatigue")
-    run = SlidingHorizon(study.problem(arm26), SlidingSettings(max_cycles=5), study.transcription(), study.solver()).run()
+    run = SlidingHorizon(study.problem(arm26), SlidingSettings(window=WINDOW, max_cycles=5), study.transcription(), study.solver()).run()
     iterations, objectives = REFERENCE_SLIDING
     assert all(_about(i, ref) for i, ref in zip(run.windows["iterations"], iterations)), list(run.windows["iterations"])
     assert list(run.windows["objective"]) == pytest.approx(objectives, rel=1e-6)

@@ -108,3 +108,19 @@ def test_no_study_no_task(run):
     r = verify_run(dataclasses.replace(run, study=""))
     assert "no study stored: task not checked" in r.notes
     assert not r.check("task").checked and not r.check("initial state").checked and np.isnan(r.task)
+
+
+def test_frame_checks_say_their_vectors_as_plain_numbers(run):
+    """The line of a plane and of a frame target shows its vectors as plain numbers, e.g.
+    ``dumbbell on [0.0, 0.0, 1.0] . p >= 10 m``, never ``[np.float64(0.0), ...]`` (both are
+    missed: the hand is nowhere near 10 m up, nor at 10 m from the base)."""
+    from fatigue_pin.ocp.task import FramePlane
+
+    plane = FramePlane("dumbbell", np.array([0.0, 0.0, 2.0]), np.float64(10.0))
+    target = FrameTarget("dumbbell", np.array([10.0, 0.2, 0.3]), at=0.5, tolerance=1.0)
+    checks, _, _ = _checks(run, plane, target)
+    planes, targets = checks["task frame planes"], checks["task frame targets"]
+    assert "dumbbell on [0.0, 0.0, 1.0] . p >= 10 m" in planes.where, planes.where
+    assert "dumbbell at [10.0, 0.2, 0.3] +- 1 m (ball)" in targets.where, targets.where
+    for line in (planes, targets):
+        assert "np." not in line.where and "array(" not in line.where
