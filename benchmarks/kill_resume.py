@@ -3,7 +3,7 @@
     PYTHONPATH=. python benchmarks/kill_resume.py [--kills 20] [--seed 0]
 
 For the small curl (10 intervals per cycle, 2 RK4 substeps, uncompiled), a sliding-horizon run
-(``--windows``) and a maximum-repetitions search (``--n-max``) are each started with
+(``--windows``), a maximum-repetitions search (``--n-max``) and a closed loop (``--mpc-cycles``) are each started with
 ``resume=True`` in a child process and killed with SIGKILL, ``--kills`` times in all, then resumed
 until they finish. Half the kills land at a random point of a write of the result file (the child
 announces every step of a write: the byte copy, the HDF5 edit, the fsync, the rename, and pauses
@@ -23,6 +23,7 @@ runs equal to the uninterrupted one. ``tests/test_kill_resume.py`` runs a short 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import subprocess
@@ -50,10 +51,14 @@ CHILD = textwrap.dedent(
         sys.stdout.flush()
 
     PAUSE = float(os.environ.get("KILL_PAUSE", "0.02"))
+    LOCKSTEP = os.environ.get("KILL_LOCKSTEP") == "1"
 
-    def announce(tag):  # a step of a write: the parent may kill here
-        say("IO " + tag)
-        time.sleep(PAUSE)
+    def announce(tag, prefix="IO "):  # a step: the parent may signal here
+        say(prefix + tag)
+        if LOCKSTEP:  # wait for the parent's go: a signal it sent first has arrived by then
+            sys.stdin.readline()
+        else:
+            time.sleep(PAUSE)
 
     real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, FS.fsync, os.replace, R._write_run
 
@@ -81,6 +86,21 @@ CHILD = textwrap.dedent(
 
     R.clone, R._compact, R._write_run, FS.fsync, os.replace = clone, compact, group, fsync, replace
 
+    import contextlib
+    import fatigue_pin.ocp.solver as SOLVER
+    real_watch = SOLVER.watch
+
+    @contextlib.contextmanager
+    def watch_solve():  # the solve has started (IPOPT's own watch is entered next)
+        announce("solve", "AT ")
+        with real_watch():
+            yield
+
+    SOLVER.watch = watch_solve
+
+    def progress(line):  # a window's or re-plan's line: between two solves, after its write
+        announce(line.split()[0], "AT ")
+
     def wrote(module, name, tag, counts=lambda *args: True):
         real = getattr(module, name)
 
@@ -93,24 +113,45 @@ CHILD = textwrap.dedent(
         setattr(module, name, call)
 
     kind, out, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
-    # every write of a driver goes through its store: a sliding run's windows, a search's table
+    # every write of a driver goes through its store: a sliding run's windows, a closed loop's
+    # re-plans, a search's table
     if kind == "max-cycles":
-        wrote(R.ResultFile, "write_table", "search")
+        wrote(R.ResultFile, "write_table", "search", lambda store, name, rows, attrs: not attrs.get("interrupted"))
     else:
         # a window's write; the run stored again as interrupted (SIGINT, SIGTERM) adds no window
         wrote(R.ResultFile, "write", "window", lambda store, run: not run.attrs.get("interrupted"))
-    study = curl_study(kind, max_cycles=n, intervals_per_cycle=10, substeps=2, solver={"compile": False})
+    study = curl_study("sliding" if kind == "mpc" else kind, max_cycles=n, intervals_per_cycle=10, substeps=2,
+                       solver={"compile": False})
     from fatigue_pin.core.signals import Interrupted, watch
     try:
         with watch():  # SIGINT, SIGTERM: Interrupted, exit code 130, 143 (as fatigue-pin does)
             say("START")
-            run_study(study, out, name="run", resume=True, progress=lambda line: say("P " + line))
+            if kind == "mpc":
+                from fatigue_pin.drivers.mpc_run import run_closed_loop
+                from fatigue_pin.io.mpc_study import MpcStudy
+                loop = MpcStudy.from_toml(study.to_toml() + MPC_TABLES).closed_loop()
+                run_closed_loop(loop, R.ResultFile(out), "run", resume=True, progress=progress)
+            else:
+                run_study(study, out, name="run", resume=True, progress=progress)
     except Interrupted as exc:
         say("INTERRUPTED")
         sys.exit(exc.exit_code)
     say("FINISHED")
     """
 )
+
+#: The closed loop of the harness: the small curl against a plant that tires faster, re-planned
+#: every cycle (10 intervals), with noise-free measurements and MHE.
+MPC_TABLES = """
+[plant.fatigue]
+F = 0.912
+
+[mpc]
+replan_every = 10
+estimator = "mhe"
+end = "receding"
+"""
+CHILD = CHILD.replace("MPC_TABLES", repr(MPC_TABLES))
 
 
 @dataclass
@@ -140,42 +181,66 @@ EXIT_CODES = {signal.SIGKILL: -signal.SIGKILL, signal.SIGINT: 130, signal.SIGTER
 
 
 def segment(kind: str, out: Path, n: int, kill: tuple | None) -> tuple[int, bool, str | None, float]:
-    """Run the child once. ``kill``: None (to the end), ("io", k): SIGKILL at its k-th write step,
-    ("at", step): at the first announcement of a write step (``copy``, ``compact``, ``h5``,
-    ``h5-written``, ``fsync``, ``rename``), ("time", s): SIGKILL s seconds after it has started
-    working, ("after-write", s): s seconds after its first write (during the next solve); a third
-    item names another signal (SIGINT, SIGTERM: the child must exit with 130, 143).
+    """Run the child once, in lockstep: at every step it announces it waits for the parent's go,
+    so a signal sent at a step arrives there. ``kill``: None (to the end), ("io", k): SIGKILL at
+    its k-th write step, ("at", step[, signal[, k]]): at the k-th (default first) announcement of
+    a step: a write step (``copy``, ``compact``, ``h5``, ``h5-written``, ``fsync``, ``rename``),
+    ``solve`` (a solve has started), or a progress line's first word (``window``, ``re-plan``,
+    ``N``: between two solves, once the last one is stored), ("time", s): s seconds after it has
+    started working, ("after-write", s): s seconds after its first write (during the next
+    solve); a signal other than SIGKILL (SIGINT, SIGTERM) must make the child exit with 130, 143.
     Returns (items it reported written, killed, the last write step it announced before dying or
     None, seconds of work)."""
     sig = kill[2] if kill is not None and len(kill) > 2 else signal.SIGKILL
+    nth = kill[3] if kill is not None and len(kill) > 3 else 1
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(out), str(n)], stdout=subprocess.PIPE,
-                            stderr=subprocess.DEVNULL, text=True, env=_env(), cwd=out.parent)
+                            stdin=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env={**_env(), "KILL_LOCKSTEP": "1"}, cwd=out.parent)
     timer = None
-    written, steps, last, finished = 0, 0, None, False
-    assert proc.stdout is not None
+    written, steps, last, finished, sent = 0, 0, None, False, False
+    seen: dict[str, int] = {}
+    assert proc.stdout is not None and proc.stdin is not None
+
+    def send() -> None:
+        nonlocal sent
+        if proc.poll() is None and not sent:
+            os.kill(proc.pid, sig)
+            sent = True
+
     for line in proc.stdout:
         if line.startswith("START"):
             t0 = time.perf_counter()
             if kill is not None and kill[0] == "time":
-                timer = threading.Timer(kill[1], lambda: proc.poll() is None and os.kill(proc.pid, sig))
+                timer = threading.Timer(kill[1], send)
                 timer.start()
         elif line.startswith("WROTE window") or line.startswith("WROTE search"):
             written += 1
             last = None
             if kill is not None and kill[0] == "after-write" and written == 1:  # during the next solve
-                timer = threading.Timer(kill[1], lambda: proc.poll() is None and os.kill(proc.pid, sig))
+                timer = threading.Timer(kill[1], send)
                 timer.start()
-        elif line.startswith("IO "):
-            steps += 1
-            last = line.split()[1]
-            if kill is not None and ((kill[0] == "io" and steps == int(kill[1])) or (kill[0] == "at" and last == kill[1])):
-                os.kill(proc.pid, sig)
+        elif line.startswith("IO ") or line.startswith("AT "):
+            tag = line.split()[1]
+            seen[tag] = seen.get(tag, 0) + 1
+            if line.startswith("IO "):
+                steps += 1
+                last = tag
+            if kill is not None and ((kill[0] == "io" and steps == int(kill[1]) and line.startswith("IO "))
+                                     or (kill[0] == "at" and tag == kill[1] and seen[tag] == nth)):
+                send()
                 if sig == signal.SIGKILL:
                     break
+            try:  # go on (a signal sent above has arrived: the child was waiting for this line)
+                proc.stdin.write("go\n")
+                proc.stdin.flush()
+            except OSError:
+                pass
         elif line.startswith("FINISHED"):
             finished = True
     proc.wait()
+    with contextlib.suppress(OSError):
+        proc.stdin.close()
     if timer is not None:
         timer.cancel()
     killed = proc.returncode == EXIT_CODES[sig] and not finished
@@ -185,7 +250,8 @@ def segment(kind: str, out: Path, n: int, kill: tuple | None) -> tuple[int, bool
 
 
 def stored(kind: str, out: Path) -> list[tuple]:
-    """The items a file holds: windows (index, first cycle, status, converged) or search rows
+    """The items a file holds: windows (index, first cycle, status, converged), a closed loop's
+    re-plans (index, node, status, converged) or search rows
     (N, converged, status); every converged N's run is read too. Raises if anything is unreadable."""
     from fatigue_pin.drivers.search import step_run_name
     from fatigue_pin.io.results import list_runs, read_run, read_search
@@ -198,6 +264,11 @@ def stored(kind: str, out: Path) -> list[tuple]:
             return []
         w = read_run(out, "run").windows
         return [(int(r["index"]), int(r["first_cycle"]), bytes(r["status"]), bool(r["converged"])) for r in w]
+    if kind == "mpc":
+        if "run" not in runs:
+            return []
+        w = read_run(out, "run").extras["replans"]
+        return [(int(r["index"]), int(r["node"]), bytes(r["status"]), bool(r["converged"])) for r in w]
     table = read_search(out).get("run")
     if table is None:
         return []
@@ -216,7 +287,7 @@ def same_result(kind: str, a: Path, b: Path, atol: float = 1e-9) -> str | None:
 
     if stored(kind, a) != stored(kind, b):
         return f"tables differ: {stored(kind, a)} != {stored(kind, b)}"
-    names = ["run"] if kind == "sliding" else [step_run_name("run", n) for n, ok, _ in stored(kind, a) if ok] + ["run"]
+    names = ["run"] if kind in ("sliding", "mpc") else [step_run_name("run", n) for n, ok, _ in stored(kind, a) if ok] + ["run"]
     if sorted(list_runs(a)) != sorted(list_runs(b)):
         return f"runs differ: {list_runs(a)} != {list_runs(b)}"
     for name in names:
@@ -240,13 +311,14 @@ def reference(kind: str, n: int, folder: Path) -> tuple[Path, float]:
 
 
 def campaign(kind: str, n: int, kills: int, folder: Path, seed: int = 0, say=print,
-             plan: list[tuple[str, float]] | None = None) -> Figures:
+             plan: list[tuple] | None = None, ref: tuple[Path, float] | None = None) -> Figures:
     """``kills`` SIGKILLs of ``kind`` runs (``sliding`` or ``max-cycles``), resumed until they end;
     as many runs from scratch as the kills need. Kills are drawn at random, half at a step of a
-    write, half after a random time; ``plan`` gives them instead, in order."""
+    write, half after a random time; ``plan`` gives them instead, in order. ``ref``: the
+    uninterrupted run and its duration, if already made (:func:`reference`)."""
     rng = np.random.default_rng(seed)
     plan = list(plan or [])
-    ref, duration = reference(kind, n, folder)
+    ref, duration = ref or reference(kind, n, folder)
     ref_items = stored(kind, ref)
     fig = Figures(kind)
     while fig.kills < kills:
@@ -311,6 +383,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--windows", type=int, default=8, help="sliding: stop after this many cycles")
     parser.add_argument("--n-max", type=int, default=6, help="search: largest N")
+    parser.add_argument("--mpc-cycles", type=int, default=4, help="closed loop: stop after this many cycles")
     parser.add_argument("--keep", type=Path, default=None, help="keep the files in this folder")
     args = parser.parse_args()
     t0 = time.perf_counter()
@@ -318,7 +391,8 @@ def main() -> None:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         figs = [campaign("sliding", args.windows, args.kills, folder, args.seed),
-                campaign("max-cycles", args.n_max, args.kills, folder, args.seed + 1)]
+                campaign("max-cycles", args.n_max, args.kills, folder, args.seed + 1),
+                campaign("mpc", args.mpc_cycles, args.kills, folder, args.seed + 2)]
     print(report(figs))
     print(f"{time.perf_counter() - t0:.0f} s")
 

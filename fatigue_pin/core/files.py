@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 from fatigue_pin.core.errors import OutputLocationError
+from fatigue_pin.core.signals import deferred
 
 #: bytes a folder must have free, at the least, to receive outputs
 MIN_FREE_BYTES = 1 << 20
@@ -79,8 +80,13 @@ def atomic_write(path: Path, write: Callable[[Path], None], tmp: Path | None = N
     fsynced. On any error the temporary file is removed and ``path`` is unchanged. ``tmp``: the
     temporary path (default: a new unique name beside ``path``; a writer that holds the file's
     lock may name it). A symbolic link is written through (:func:`through_links`): the link
-    stays, its target changes."""
-    path = through_links(path)
+    stays, its target changes. A SIGINT or SIGTERM that arrives during the write is raised once
+    it is done (:func:`fatigue_pin.core.signals.deferred`): a write is whole or not started."""
+    with deferred():
+        return _atomic_write(through_links(path), write, tmp)
+
+
+def _atomic_write(path: Path, write: Callable[[Path], None], tmp: Path | None) -> Path:
     if tmp is None:
         fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         os.close(fd)

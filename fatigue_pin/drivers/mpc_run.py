@@ -35,6 +35,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ResultFileError
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.core.signals import Interrupted, signal_name
 from fatigue_pin.drivers.estimation import History
 from fatigue_pin.drivers.mpc import REPLAN_DTYPE, ClosedLoop, LoopState, follows_flow, repetitions_achieved
 from fatigue_pin.drivers.run import RunResult, RunStore, fatigue_parameters, run_attributes, to_run_result
@@ -173,12 +174,22 @@ def run_closed_loop(loop: ClosedLoop, store: RunStore | None = None, name: str =
         state = from_run(loop, stored)
         rep.line(f"resuming {name!r}: {len(state.replans)} re-plans done, node {state.node}")
     build = loop.ocp.build_time_s
+    kept: list[RunResult] = [stored] if state is not None else []  # the run as last stored
+    state = state or loop.initial_state()
 
     def checkpoint(s: LoopState) -> None:
         if store is not None:
-            store.write(to_run(loop, s, name, study, labels, build))
+            run = to_run(loop, s, name, study, labels, build)
+            store.write(run)
+            kept[:] = [run]
 
-    state = loop.run(state, checkpoint, rep, stop_after)
+    try:
+        state = loop.run(state, checkpoint, rep, stop_after)
+    except Interrupted as exc:  # the last stored state, marked interrupted; --resume continues from it
+        if store is not None and kept and not kept[0].attrs.get("finished"):
+            kept[0].attrs.update(interrupted=signal_name(exc), finished=False, converged=False)
+            store.write(kept[0])
+        raise
     return to_run(loop, state, name, study, labels, build)
 
 

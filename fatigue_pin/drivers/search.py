@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from fatigue_pin.core.progress import Progress, as_reporter
+from fatigue_pin.core.signals import Interrupted, deferred, signal_name
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import RunResult, RunStore, solution_to_run
 from fatigue_pin.ocp.guesses import resample_guess
@@ -75,6 +76,7 @@ class _Search:
         self.result = SearchResult(max_cycles=0)
         self.solutions: dict[int, Solution] = {}
         self.done: dict[int, list[dict[str, object]]] = {}
+        self.kept = 0  # rows of result.tried that the stored table holds
         self.bar = rep.bar(None, "search steps", "solve")
 
     def _solve(self, ocp: Ocp, n: int, start: Solution | None, label: str) -> OcpSolution:
@@ -91,6 +93,7 @@ class _Search:
         """Solve N = ``n`` (or take its stored outcome); True if it converged."""
         if n in self.done:
             self.result.tried.extend(self.done[n])
+            self.kept = len(self.result.tried)
             return bool(self.done[n][-1]["converged"])
         ocp = self.build(n, self.end_tolerance)
         prior = [k for k in self.solutions if k <= n]
@@ -102,12 +105,27 @@ class _Search:
             sol = self._solve(ocp, n, None, self.guess)
         best = max(self.solutions) if self.solutions else 0
         self.bar.update(1, N=n, status="converged" if sol.success else sol.kind, best=best)
-        if sol.success:
-            self.solutions[n] = (sol.x, sol.u)
-            if n >= self.result.max_cycles:
-                self.result.max_cycles, self.result.best = n, (ocp, sol)
-        self._keep(ocp, sol, n)
+        with deferred():  # N is kept and stored whole, or not at all
+            if sol.success:
+                self.solutions[n] = (sol.x, sol.u)
+                if n >= self.result.max_cycles:
+                    self.result.max_cycles, self.result.best = n, (ocp, sol)
+            self._keep(ocp, sol, n)
         return sol.success
+
+    def _table_attrs(self, interrupted: str = "") -> dict[str, Any]:
+        """The search table's attributes; ``interrupted``: the signal that stopped the search."""
+        best = max(self.solutions) if self.solutions else 0
+        attrs = {**self.labels, "run": self.name, "max_cycles": best}
+        return attrs | {"interrupted": interrupted} if interrupted else attrs
+
+    def interrupted(self, exc: Interrupted) -> None:
+        """Mark the stored search as interrupted by ``exc``'s signal (every N kept stays; a solve
+        whose outcome was not yet kept is solved again on resuming)."""
+        if self.store is not None and self.kept:
+            with deferred():
+                self.store.write_table(search_table_name(self.name), self.result.tried[: self.kept],
+                                       self._table_attrs(signal_name(exc)))
 
     def _keep(self, ocp: Ocp, sol: OcpSolution, n: int) -> None:
         """Store the converged solution of N (and as the best run when it is the largest so far)
@@ -118,9 +136,8 @@ class _Search:
             self.store.write(solution_to_run(ocp, sol, step_run_name(self.name, n), self.study, self.labels))
             if n >= max(self.solutions):
                 self.store.write(solution_to_run(ocp, sol, self.name, self.study, self.labels))
-        best = max(self.solutions) if self.solutions else 0
-        self.store.write_table(search_table_name(self.name), self.result.tried,
-                               {**self.labels, "run": self.name, "max_cycles": best})
+        self.store.write_table(search_table_name(self.name), self.result.tried, self._table_attrs())
+        self.kept = len(self.result.tried)
 
     def restore(self, layout: StateLayout) -> None:
         """Take the solves and converged solutions of a stored search of the same run."""
@@ -151,7 +168,15 @@ class _Search:
             self.rep.line(f"resuming the search {self.name!r}: N = {sorted(self.done)} already done")
 
     def run(self, n_max: int | None) -> SearchResult:
-        """Gallop, then bisect; returns the outcome."""
+        """Gallop, then bisect; returns the outcome. Interrupted (SIGINT, SIGTERM): the stored
+        table says so, and the exception goes on."""
+        try:
+            return self._run(n_max)
+        except Interrupted as exc:
+            self.interrupted(exc)
+            raise
+
+    def _run(self, n_max: int | None) -> SearchResult:
         low, high, n = 0, None, 1  # largest success, smallest failure, next N
         while n_max is None or n <= n_max:
             if not self.attempt(n):

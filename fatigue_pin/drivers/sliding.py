@@ -30,7 +30,7 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError, ResultFileError
 from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, setting
 from fatigue_pin.core.progress import Progress, as_reporter
-from fatigue_pin.core.signals import Interrupted, signal_name
+from fatigue_pin.core.signals import Interrupted, deferred, signal_name
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.run import WINDOW_DTYPE, RunResult, RunStore, failed_window_name, in_progress_name, run_attributes, to_run_result
 from fatigue_pin.ocp.guesses import shifted_window_guess
@@ -118,6 +118,33 @@ def median_real_time_factor(windows: np.ndarray, advanced_s: float) -> float:
     """Median :func:`real_time_factors` of the converged windows (NaN when none converged)."""
     ok = np.asarray(windows["converged"], dtype=bool) if len(windows) else np.zeros(0, dtype=bool)
     return float(np.median(real_time_factors(windows, advanced_s)[ok])) if ok.any() else float("nan")
+
+
+def ending(run: RunResult) -> str:
+    """Why a sliding-horizon run (a :class:`RunResult` of :meth:`SlidingHorizon.run`) ended, in
+    words for beside its repetition count: the arm could no longer do the next K cycles (the
+    window that failed, which cycles it planned, and how the solver ended), the ``max_cycles``
+    cap, an interruption, or a run not finished yet."""
+    a, windows = run.attrs, run.windows
+    solved = 0 if windows is None else len(windows)
+    if a.get("interrupted"):
+        return f"interrupted ({a['interrupted']}) after {solved} windows; --resume continues"
+    if not a.get("finished", False):
+        return f"not finished: {solved} windows solved so far; --resume continues"
+    if solved and not bool(windows["converged"][-1]):
+        last = windows[-1]
+        index, first, K = int(last["index"]), int(last["first_cycle"]), int(a["window"])
+        status, iterations = last["status"].decode(), int(last["iterations"])
+        how = (f"its limit of {iterations} iterations" if status.startswith("Maximum_Iterations")
+               else f"{status} after {iterations} iterations")
+        if first == 0:
+            return f"the arm could not do the first {K} cycles (the solver found no motion: {how})"
+        return (f"then the arm was too tired to go on: the solver found no motion for the next {K} cycles ({first + 1}-{first + K}) "
+                f"from the end of cycle {first} (window {index}: {how})")
+    cap = a.get("max_cycles", -1)
+    if cap is not None and int(cap) > 0 and run.n_cycles >= int(cap):
+        return f"stopped at the cap of {int(cap)} cycles (horizon.max_cycles), not by fatigue"
+    return "finished"
 def stitched_nodes(task: Task, at: float | None, window: int, advance: int, first_cycles: Sequence[int]) -> list[int]:
     """Nodes of a stitched run where the windows put the task's phase ``at`` (every node for
     ``None``), in order.
@@ -340,46 +367,59 @@ class SlidingHorizon:
         bar.update(state.n_cycles if state is not None else 0)
         solved = 0
         last = None  # the NLP result of the last window, if it converged (warm starts)
-        while (state is None or not state.done) and (stop_after is None or solved < stop_after):
-            x_init, guess, first_cycle = self._next_window(state)
-            limit = self._iteration_limit(state) if state is not None else None
-            warm = self._warm_start(last) if (self.sliding.warm_start and last is not None) else None
-            if warm is not None:
-                guess = ocp.unflatten(warm.x)
-            try:
+        try:
+            while (state is None or not state.done) and (stop_after is None or solved < stop_after):
+                x_init, guess, first_cycle = self._next_window(state)
+                limit = self._iteration_limit(state) if state is not None else None
+                warm = self._warm_start(last) if (self.sliding.warm_start and last is not None) else None
+                if warm is not None:
+                    guess = ocp.unflatten(warm.x)
                 sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
-            except Interrupted as exc:  # the windows done so far stay, marked interrupted; --resume continues
-                if store is not None and state is not None:
+                last = sol.nlp if sol.success else None
+                solved += 1
+                index = len(state.windows) if state is not None else 0
+                row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
+                mf_end = sol.x[A * n, fatigued_rows]
+                before = state.n_cycles if state is not None else 0
+                with deferred():  # the window is kept and stored whole, or not at all
+                    state = self._advance(state, sol, row)
+                    if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
+                        state.done = True
+                    if store is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
+                        store.write(self._failed_window(sol, first_cycle, failed_window_name(name)))
+                    if store is not None:
+                        store.write(self._run_result(state, work, ocp.build_time_s))
+                rep.line(self._window_line(index, first_cycle, sol, limit, mf_end.max()))
+                bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
+            bar.close()
+            if state is None:
+                raise RuntimeError("no window was solved")
+            with deferred():
+                if state.done and work != name and store is not None:  # complete: now it replaces the old run
+                    store.write(self._run_result(state, name, ocp.build_time_s))
+                    store.delete(work)
+        except Interrupted as exc:  # the windows kept so far stay, marked interrupted; --resume continues
+            if store is not None and state is not None and not state.done:
+                with deferred():
                     store.write(self._run_result(state, work, ocp.build_time_s, interrupted=signal_name(exc)))
-                raise
-            last = sol.nlp if sol.success else None
-            solved += 1
-            index = len(state.windows) if state is not None else 0
-            row = (index, first_cycle, sol.status.encode()[:40], sol.success, sol.iterations, sol.wall_time_s, sol.objective)
-            mf_end = sol.x[A * n, fatigued_rows]
-            rep.line(f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
-                     f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
-                     f" (real-time factor {sol.wall_time_s / self._advanced_s:.2f})"
-                     f"{'' if limit is None else f' (limit {limit} it)'}  max mf {mf_end.max():.3f}")
-            before = state.n_cycles if state is not None else 0
-            state = self._advance(state, sol, row)
-            if self.sliding.max_cycles is not None and state.n_cycles >= self.sliding.max_cycles:
-                state.done = True
-            if store is not None and not sol.success:  # IPOPT's last iterate of the failed window, to inspect
-                store.write(self._failed_window(sol, first_cycle, failed_window_name(name)))
-            if store is not None:
-                store.write(self._run_result(state, work, ocp.build_time_s))
-            bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
-        bar.close()
-        if state is None:
-            raise RuntimeError("no window was solved")
-        if state.done and work != name and store is not None:  # complete: now it replaces the old run
-            store.write(self._run_result(state, name, ocp.build_time_s))
-            store.delete(work)
+            elif store is not None and state is not None and work != name:  # every window is done: complete it
+                with deferred():
+                    if work in store.runs():
+                        store.write(self._run_result(state, name, ocp.build_time_s))
+                        store.delete(work)
+            raise
         result = self._run_result(state, name if state.done else work, ocp.build_time_s)
         rep.line(f"median real-time factor {result.attrs['median_real_time_factor']:.2f} "
                  f"(s of solving per s of motion advanced, {result.attrs['converged_windows']} converged windows)")
         return result
+
+    def _window_line(self, index: int, first_cycle: int, sol: OcpSolution, limit: int | None, max_mf: float) -> str:
+        """The progress line of a solved window."""
+        K = self.sliding.window
+        return (f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
+                f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
+                f" (real-time factor {sol.wall_time_s / self._advanced_s:.2f})"
+                f"{'' if limit is None else f' (limit {limit} it)'}  max mf {max_mf:.3f}")
 
     @staticmethod
     def _working_name(store: RunStore | None, name: str, resume: bool) -> str:

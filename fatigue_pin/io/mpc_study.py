@@ -191,6 +191,17 @@ class MpcStudy:
                 table(key, self.tables[key])
         return "\n".join(lines)
 
+    @property
+    def data(self) -> dict[str, Any]:
+        """The study's tables, the closed-loop ones (``plant``, ``mpc``, ``seed``) included: what
+        :meth:`from_dict` reads and dotted keys change (a sweep's base)."""
+        return {**copy.deepcopy(self.study.data), **copy.deepcopy(self.tables)}
+
+    def replace(self, changes: dict[str, Any]) -> MpcStudy:
+        """A copy with dotted keys changed, e.g. ``{"plant.fatigue.F": 0.9, "mpc.replan_every": 5}``
+        (as ``--set``; the model's keys as :meth:`Study.replace`)."""
+        return MpcStudy.from_dict(self.data, changes)
+
     def sliding(self) -> SlidingSettings:
         """The controller's window from the study's [horizon] table."""
         return self.study.horizon_settings().sliding_settings()

@@ -65,12 +65,19 @@ from fatigue_pin.drivers.run import (
 
 __all__ = [
     "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
-    "check_output", "check_output_dir", "check_run_slot", "delete_run", "list_runs", "read_run", "read_search", "torque_limits_at_cycle_ends",
+    "check_output", "check_output_dir", "check_run_slot", "delete_run", "list_runs", "read_run", "read_search", "read_search_attrs", "torque_limits_at_cycle_ends",
     "write_run", "write_search",
 ]
 
 #: Fatigue states of files written before the layout named them (Xia's model).
 LEGACY_FATIGUE_STATES = ("ma", "mr", "mf")
+
+
+def _attr_value(value: Any) -> Any:
+    """An HDF5 attribute as Python reads it back: text as str, a numpy scalar as a Python one."""
+    value = value.decode() if isinstance(value, bytes) else value
+    return value.item() if isinstance(value, np.generic) else value
+
 
 def _as_attr(value: Any) -> Any:
     if value is None:
@@ -119,8 +126,7 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
     missing = [k for k in ("t", "q", "qdot", "tau_plus", "tau_minus", *states, "cycle_costs", "torque_limits") if k not in group]
     if missing:
         raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
-    attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
-    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in attrs.items()}
+    attrs = {k: _attr_value(v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
     run = RunResult(
         name=name,
         attrs=attrs,
@@ -498,6 +504,16 @@ def read_search(path: str | Path) -> dict[str, np.ndarray]:
         if "search" not in h5:
             return {}
         return {k: h5["search"][k][()] for k in h5["search"]}
+
+
+def read_search_attrs(path: str | Path) -> dict[str, dict[str, Any]]:
+    """The attributes of every search table of a file, by name: ``run`` (the best run's name),
+    ``max_cycles`` (the largest N converged so far), the labels, and ``interrupted`` (``SIGINT``,
+    ``SIGTERM``) while a search stopped by a signal has not been resumed to its end."""
+    with _open(path) as h5, _reading(f"the search tables of {str(path)!r}"):
+        if "search" not in h5:
+            return {}
+        return {k: {a: _attr_value(v) for a, v in h5["search"][k].attrs.items()} for k in h5["search"]}
 
 
 def config_json(obj: Any) -> str:

@@ -321,14 +321,14 @@ def _run_full(job: _Job) -> StudyResult:
 
 
 def _run_sliding(job: _Job) -> StudyResult:
-    from fatigue_pin.drivers.sliding import SlidingHorizon
+    from fatigue_pin.drivers.sliding import SlidingHorizon, ending
 
     runner = SlidingHorizon(job.problem, job.horizon.sliding_settings(), job.transcription, job.solver, guess=job.horizon.guess,
                             study=job.study.to_toml(), labels=job.study.labels, progress=job.say)
     run = runner.run(job.store, name=job.name, resume=job.resume, progress=job.say)
     a = run.attrs
     objective = float(run.cycle_costs.sum()) if run.cycle_costs.size else math.nan
-    outcome = (f"{a['repetitions']} repetitions ({a['converged_windows']} windows converged, {a['wall_time_s']:.1f} s solving, "
+    outcome = (f"{a['repetitions']} repetitions: {ending(run)} ({a['converged_windows']} windows converged, {a['wall_time_s']:.1f} s solving, "
                f"median real-time factor {a.get('median_real_time_factor', float('nan')):.2f})")
     return StudyResult("sliding", run, int(a["repetitions"]), run.converged, True, objective, int(a.get("iterations", -1)),
                        float(a["wall_time_s"]), outcome)

@@ -1,5 +1,6 @@
 """One job of a sweep on a Dask worker (:func:`run_job`): the run is built in a hidden partial
-file, marked complete with its study and summary row, and renamed into place."""
+file, marked complete with its study and summary row, and renamed into place. A closed-loop
+study (:mod:`fatigue_pin.io.mpc_study`) runs its closed loop, as ``fatigue-pin mpc`` does."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from fatigue_pin.io.mpc_study import MpcStudy, is_closed_loop_table, run_mpc
 from fatigue_pin.io.study import Study, StudyResult
 from fatigue_pin.sweep.summary import SUMMARY_FORMAT
 
@@ -26,6 +28,33 @@ def _summarise(result: StudyResult) -> dict[str, Any]:
     """Status, repetitions, objective, iterations and run name of a finished run_study."""
     return {"status": "converged" if result.converged else "not converged", "repetitions": result.repetitions,
             "objective": result.objective, "iterations": result.iterations, "run": result.run.name if result.run is not None else ""}
+
+
+def _summarise_closed_loop(run) -> dict[str, Any]:
+    """The same of a closed loop's run (:func:`fatigue_pin.io.mpc_study.run_mpc`): its re-plans'
+    status, the plant's repetitions, the cost of its cycles, the re-plans' iterations."""
+    a = run.attrs
+    return {"status": "converged" if a["converged"] else "not converged", "repetitions": int(a["repetitions"]),
+            "objective": float(run.cycle_costs.sum()) if run.cycle_costs.size else math.nan,
+            "iterations": int(a["iterations"]), "run": run.name}
+
+
+def _job_study(text: str, job_id: str) -> Study | MpcStudy:
+    """The study of a job's TOML text: a closed-loop study when it has [plant], [mpc] or a seed."""
+    import tomllib
+
+    if is_closed_loop_table(tomllib.loads(text)):
+        return MpcStudy.from_toml(text, f"job {job_id}")
+    return Study.from_toml(text, f"job {job_id}")
+
+
+def _run(study: Study | MpcStudy, part: Path, resume: bool, cache_dir: str | None) -> dict[str, Any]:
+    """Run a job's study into ``part`` (``resume``: continue the run stored there); its summary."""
+    from fatigue_pin.io.study import run_study
+
+    if isinstance(study, MpcStudy):
+        return _summarise_closed_loop(run_mpc(study, part, resume=resume, cache_dir=cache_dir))
+    return _summarise(run_study(study, part, resume=resume, cache_dir=cache_dir))
 
 
 def partial_path(out_dir: Path, job_id: str) -> Path:
@@ -104,7 +133,6 @@ def run_job(text: str, job_id: str, out_dir: str, cache_dir: str | None = None) 
     import h5py
 
     from fatigue_pin.io.results import ResultFileError
-    from fatigue_pin.io.study import run_study
 
     out = Path(out_dir)
     final = out / f"{job_id}.h5"
@@ -117,18 +145,18 @@ def run_job(text: str, job_id: str, out_dir: str, cache_dir: str | None = None) 
     t0 = time.perf_counter()
     row: dict[str, Any] = {"job": job_id, "file": final.name, "worker": host, "reused": False, "error": ""}
     try:
-        study = Study.from_toml(text, f"job {job_id}")
+        study = _job_study(text, job_id)
         resume = part.exists() and h5py.is_hdf5(part)
         if not resume:
             _remove_leftovers(out, job_id)
         try:
-            result = run_study(study, part, resume=resume, cache_dir=cache_dir)
+            summary = _run(study, part, resume, cache_dir)
         except (ResultFileError, OSError):
             if not resume:
                 raise
             _remove_leftovers(out, job_id)  # a partial file that cannot be resumed: start again
-            result = run_study(study, part, cache_dir=cache_dir)
-        row.update(_summarise(result))
+            summary = _run(study, part, False, cache_dir)
+        row.update(summary)
         row["wall_time_s"] = time.perf_counter() - t0
         if not part.exists():
             h5py.File(part, "w").close()

@@ -38,10 +38,15 @@ import itertools
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Union
 
 from fatigue_pin.core.errors import FatiguePinError, SweepError
-from fatigue_pin.io.study import Study, StudyError
+from fatigue_pin.io.mpc_study import MpcStudy, is_closed_loop, is_closed_loop_table
+from fatigue_pin.io.study import Study
+
+#: A sweep's base and its jobs: a study, or a closed-loop study (its [plant], [mpc] tables and
+#: seed are keys like the others, e.g. ``"plant.fatigue.F"``; :mod:`fatigue_pin.io.mpc_study`).
+AnyStudy = Union[Study, MpcStudy]
 
 #: Keys a sweep file may hold at its top level.
 SWEEP_KEYS = ("base", "grid", "cases", "description")
@@ -86,7 +91,7 @@ class Job:
 
     Attributes:
         index: position in the sweep (0-based; the order of :meth:`Sweep.jobs`).
-        study: the resolved, validated study.
+        study: the resolved, validated study (a closed-loop one when the base is).
         values: the swept keys and their values for this job (case keys, then grid keys).
         case: index of the job's ``[[cases]]`` table (None in a sweep without cases).
         text: the study's TOML text (what the result file stores).
@@ -94,7 +99,7 @@ class Job:
     """
 
     index: int
-    study: Study
+    study: AnyStudy
     values: dict[str, Any]
     text: str
     id: str
@@ -107,9 +112,9 @@ class Job:
 
 @dataclass
 class Sweep:
-    """A base study and the changes that make its jobs."""
+    """A base study (or closed-loop study) and the changes that make its jobs."""
 
-    base: Study
+    base: AnyStudy
     grid: dict[str, list[Any]] = field(default_factory=dict)
     cases: list[dict[str, Any]] = field(default_factory=list)
     source: str = "sweep"
@@ -156,7 +161,7 @@ class Sweep:
             for value in values:  # each value alone, so the message names it
                 try:
                     base.replace({key: value})
-                except StudyError as exc:
+                except FatiguePinError as exc:
                     raise SweepError(f"{source}: [grid] {key} = {value!r}: {exc}") from None
         raw_cases = data.get("cases", None)
         cases: list[dict[str, Any]] = []
@@ -174,7 +179,7 @@ class Sweep:
                     raise SweepError(f"{source}: cases[{i}] and [grid] both set {both[0]!r}")
                 try:
                     base.replace(flat)
-                except StudyError as exc:
+                except FatiguePinError as exc:
                     raise SweepError(f"{source}: cases[{i}]: {exc}") from None
                 cases.append(flat)
         description = data.get("description", "")
@@ -185,7 +190,7 @@ class Sweep:
         return sweep
 
     @staticmethod
-    def _base(base: Any, root: Path, source: str) -> Study:
+    def _base(base: Any, root: Path, source: str) -> AnyStudy:
         if base is None:
             raise SweepError(f"{source}: missing key 'base': expected a study file path or a [base] table")
         if isinstance(base, str):
@@ -193,13 +198,13 @@ class Sweep:
             if not path.is_file():
                 raise SweepError(f"{source}: base study not found: {base!r} (looked for {str(path)!r})")
             try:
-                return Study.from_file(path)
+                return MpcStudy.from_file(path) if is_closed_loop(path) else Study.from_file(path)
             except FatiguePinError as exc:
                 raise SweepError(f"{source}: base study {base!r}: {exc}") from None
         if isinstance(base, dict):
             try:
-                return Study.from_dict(base)
-            except StudyError as exc:
+                return MpcStudy.from_dict(base) if is_closed_loop_table(base) else Study.from_dict(base)
+            except FatiguePinError as exc:
                 raise SweepError(f"{source}: [base]: {exc}") from None
         raise SweepError(f"{source}: base = {base!r}: expected a study file path or a [base] table")
 
@@ -221,7 +226,7 @@ class Sweep:
                 values = {**copy.deepcopy(case), **copy.deepcopy(point)}
                 try:
                     study = self.base.replace(values) if values else self.base
-                except StudyError as exc:
+                except FatiguePinError as exc:
                     raise SweepError(f"{self.source}: job {_show(values)}: {exc}") from None
                 text = study.to_toml()
                 job = Job(len(jobs), study, values, text, study_id(text), c if self.cases else None)

@@ -57,13 +57,14 @@ def test_sigint_and_sigterm_stop_a_sliding_run_that_resumes_to_the_same_result(t
 
 
 def test_an_interrupted_window_is_stored_as_interrupted_and_resumed(tmp_path):
-    """The run stored after SIGINT mid-solve is neither finished nor converged, names the
-    signal, and holds only the windows finished before it; --resume continues it."""
+    """The run stored after SIGINT at the start of the second window's solve is neither finished
+    nor converged, names the signal, and holds only the window finished before it; --resume
+    continues it."""
     from fatigue_pin.io.results import read_run
 
     out = tmp_path / "run.h5"
-    written, killed, last, _ = segment("sliding", out, 5, ("after-write", 0.3, signal.SIGINT))
-    assert killed and written >= 1
+    written, killed, last, _ = segment("sliding", out, 5, ("at", "solve", signal.SIGINT, 2))
+    assert killed and written == 1
     run = read_run(out, "run")
     assert run.attrs["interrupted"] == "SIGINT" and not run.attrs["finished"] and not run.attrs["converged"]
     assert len(run.windows) == written and all(bool(w["converged"]) for w in run.windows)
@@ -71,6 +72,60 @@ def test_an_interrupted_window_is_stored_as_interrupted_and_resumed(tmp_path):
     segment("sliding", out, 5, None)
     run = read_run(out, "run")
     assert run.attrs["finished"] and "interrupted" not in run.attrs and run.n_cycles == 5
+
+
+#: The steps a SIGINT is sent at: every step of a write of the result file, the start of a solve,
+#: and between two solves (a progress line, once the last one is stored), for each driver.
+WRITE_STEPS = ("copy", "h5", "h5-written", "fsync", "rename")
+BETWEEN = {"sliding": "window", "max-cycles": "N", "mpc": "re-plan"}
+SIZES = {"sliding": 5, "max-cycles": 2, "mpc": 3}
+
+
+@pytest.fixture(scope="module")
+def references(tmp_path_factory):
+    """The uninterrupted run of each driver (made once, on first use)."""
+    from kill_resume import reference
+
+    folder, made = tmp_path_factory.mktemp("references"), {}
+
+    def get(kind):
+        if kind not in made:
+            made[kind] = reference(kind, SIZES[kind], folder)
+        return made[kind]
+
+    return get
+
+
+def _stored_as_interrupted(kind, out):
+    from fatigue_pin.io.results import read_run, read_search_attrs
+
+    if kind == "max-cycles":
+        return read_search_attrs(out)["run"].get("interrupted")
+    run = read_run(out, "run")
+    return run.attrs.get("interrupted") if not run.attrs["finished"] and not run.attrs["converged"] else "finished"
+
+
+@pytest.mark.parametrize("step", [*WRITE_STEPS, "solve", "between"])
+@pytest.mark.parametrize("kind", ["sliding", "max-cycles", "mpc"])
+def test_a_sigint_at_any_step_is_stored_as_interrupted_and_resumes_to_the_same_result(tmp_path, references, kind, step):
+    """SIGINT at the second occurrence of ``step`` (the first copy: the first write makes the
+    file, so it has no copy): the child exits with 130, the file says the run was interrupted and keeps
+    every item it reported written, and --resume ends at the uninterrupted result."""
+    from kill_resume import same_result, stored
+
+    tag = BETWEEN[kind] if step == "between" else step
+    out = tmp_path / "run.h5"
+    written, killed, _, _ = segment(kind, out, SIZES[kind], ("at", tag, signal.SIGINT, 1 if tag == "copy" else 2))
+    assert killed, f"the {kind} child was not interrupted at {tag}"
+    assert written >= 1 and len(stored(kind, out)) >= written
+    assert _stored_as_interrupted(kind, out) == "SIGINT"
+    segment(kind, out, SIZES[kind], None)
+    ref, _ = references(kind)
+    assert same_result(kind, out, ref) is None
+    if kind == "max-cycles":
+        from fatigue_pin.io.results import read_search_attrs
+
+        assert "interrupted" not in read_search_attrs(out)["run"]
 
 
 def test_sigterm_stops_a_search(tmp_path):

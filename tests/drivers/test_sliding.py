@@ -264,29 +264,61 @@ def test_a_run_replaces_one_of_the_same_name_only_when_complete(full_run, runner
     assert np.allclose(read_run(out, name).q, reference.q, atol=1e-9)
 
 
+@pytest.mark.parametrize("window", [1, 2])
 @pytest.mark.parametrize("target_rows", [False, True])
-def test_windows_advancing_their_length_start_where_the_previous_one_ended(target_rows):
-    """Window 1 advancing 1 with the last phase-0 target at node N - 1: each join (a window's
-    last node, not a target node) is the next window's start state, not its phase-0 target.
-    The stitched run solves its own RK4 across the joins, and verify passes it (gaps on a grid
-    fine enough for its tolerance, 8 substeps; the targets on the nodes the windows put them)."""
+def test_windows_advancing_their_length_start_where_the_previous_one_ended(target_rows, window):
+    """Windows of K cycles advancing K with the last phase-0 target at node K n - 1: each join
+    (a window's last node, not a target node) is the next window's start state, not its phase-0
+    target. The stitched run solves its own RK4 across the joins (no jump), and verify passes it
+    (gaps on a grid fine enough for its tolerance, 8 substeps; the targets on the nodes the
+    windows put them)."""
     from conftest import small_curl
     from fatigue_pin.drivers.sliding import stitched_nodes
     from fatigue_pin.io.study import run_study
     from fatigue_pin.paper.curl import LOW
     from fatigue_pin.verify import verify_run
 
-    study = small_curl("sliding", cycles=1, max_cycles=3, substeps=8, transcription={"target_rows": target_rows})
-    study = study.replace({"horizon.advance": 1, "task.final_node_offset": -1})
+    K, n = window, 10
+    study = small_curl("sliding", cycles=K, max_cycles=3 * K, substeps=8, transcription={"target_rows": target_rows})
+    study = study.replace({"horizon.advance": K, "task.final_node_offset": -1})
     run = run_study(study).run
-    assert list(run.windows["converged"]) == [True] * 3 and run.n_cycles == 3
-    joins = [10, 20]
-    assert np.allclose(run.q[[9, 19, 29], 1], LOW, atol=1e-8)  # each window's last phase-0 target, node N - 1
+    assert list(run.windows["converged"]) == [True] * 3 and run.n_cycles == 3 * K
+    joins = [K * n, 2 * K * n]
+    ends = [K * n - 1, 2 * K * n - 1, 3 * K * n - 1]
+    assert np.allclose(run.q[ends, 1], LOW, atol=1e-8)  # each window's last phase-0 target, node K n - 1
     assert np.all(np.abs(run.q[joins, 1] - LOW) > 1e-2)  # the joins: where the windows ended, within their end box
     report = verify_run(run)
     assert report.rk4_residual < 1e-6, report.table()  # no jump at the joins
     assert report.gap < 1e-3 and report.gap_fatigue < 1e-5 and report.task < 1e-8
     assert report.passed, report.table()
-    assert stitched_nodes(study.task(), 0.0, 1, 1, [0, 1, 2]) == [0, 9, 19, 29]
-    assert stitched_nodes(study.task(), 0.5, 1, 1, [0, 1, 2]) == [5, 15, 25]
+    first_cycles = [0, K, 2 * K]
+    expected = sorted({0} | {c * n for c in range(1, 3 * K) if c % K} | set(ends))
+    assert stitched_nodes(study.task(), 0.0, K, K, first_cycles) == expected
+    assert stitched_nodes(study.task(), 0.5, K, K, first_cycles) == [c * n + 5 for c in range(3 * K)]
+
+
+def test_stitched_nodes_of_overlapping_windows_are_the_task_nodes():
+    """With advance < window the phase-0 targets of the stitched run are Task.nodes over it."""
+    from conftest import small_curl
+    from fatigue_pin.drivers.sliding import stitched_nodes
+
+    study = small_curl("sliding").replace({"task.final_node_offset": -1})
     assert stitched_nodes(study.task(), 0.0, 3, 1, [0, 1, 2]) == [0, 10, 20, 30, 40, 49]  # = Task.nodes over 5 cycles
+
+def test_the_ending_says_why_the_run_ended(full_run):
+    """A run ends because the arm can no longer do the next K cycles (said in those words, with
+    the window, its cycles and how the solver ended), or at the max_cycles cap."""
+    from conftest import small_curl
+    from fatigue_pin.drivers.sliding import ending
+    from fatigue_pin.io.study import run_study
+
+    assert ending(full_run[0]) == "stopped at the cap of 5 cycles (horizon.max_cycles), not by fatigue"
+    tired = run_study(small_curl("sliding").replace({"fatigue.F": 5.0})).run  # tires within a few cycles
+    last = tired.windows[-1]
+    assert not last["converged"] and tired.n_cycles == repetitions(int(tired.windows["converged"].sum()), SlidingSettings())
+    first, status, iterations = int(last["first_cycle"]), last["status"].decode(), int(last["iterations"])
+    assert ending(tired) == (f"then the arm was too tired to go on: the solver found no motion for the next 3 cycles "
+                             f"({first + 1}-{first + 3}) from the end of cycle {first} (window {int(last['index'])}: {status} "
+                             f"after {iterations} iterations)")
+    cold = run_study(small_curl("sliding").replace({"fatigue.F": 10.0})).run  # the first window already fails
+    assert ending(cold).startswith("the arm could not do the first 3 cycles (the solver found no motion: ")

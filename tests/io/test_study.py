@@ -261,7 +261,7 @@ def test_run_study_returns_one_result_type_for_every_horizon_kind(tmp_path):
     assert full.outcome == "converged"
     assert (sliding.kind, sliding.repetitions, sliding.search) == ("sliding", 3, None)
     assert sliding.repetitions == sliding.run.attrs["repetitions"] == sliding.run.n_cycles
-    assert sliding.outcome.startswith("3 repetitions (1 windows converged")
+    assert sliding.outcome.startswith("3 repetitions: stopped at the cap of 3 cycles (horizon.max_cycles), not by fatigue (1 windows converged")
     assert search.kind == "max-cycles" and search.repetitions == search.search.max_cycles == 2 == search.run.n_cycles
     assert search.iterations == sum(r["iterations"] for r in search.search.tried)
     assert search.outcome.startswith("maximum repetitions: 2 (tried N = [1, 2]; failed: none)")

@@ -20,7 +20,7 @@ from fatigue_pin.ocp.transcription import Ocp
 
 STUDY = Path(__file__).resolve().parents[2] / "studies" / "ur5_carry.toml"
 #: a quick version of the carry study: 10 intervals per cycle, uncompiled
-QUICK = {"task.intervals_per_cycle": 10, "solver.compile": False}
+QUICK = {"task.intervals_per_cycle": 10, "transcription.substeps": 2, "solver.compile": False}  # a coarse, quick grid
 
 
 @pytest.fixture(scope="module")

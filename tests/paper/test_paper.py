@@ -69,3 +69,28 @@ def test_sliding_horizon_parity_with_the_previous_formulation(arm26):
     assert all(_about(i, ref) for i, ref in zip(run.windows["iterations"], iterations)), list(run.windows["iterations"])
     assert list(run.windows["objective"]) == pytest.approx(objectives, rel=1e-6)
     assert run.attrs["repetitions"] == 5
+
+
+def test_the_demo_ends_on_its_count_and_why_the_arm_stopped(tmp_path, monkeypatch):
+    """The demo (on a small curl that tires within a few cycles: F = 5 1/s, 10 intervals per
+    cycle) ends on its repetition count and why the sliding horizon ended, in words; the line
+    before says why the paper's count differs (its authors' code's values, from
+    fatigue_pin.paper.curl)."""
+    from fatigue_pin.paper import curl
+    from fatigue_pin.paper.curl import PAPER_REPETITIONS
+    from fatigue_pin.paper.reproduce import demo
+
+    small = small_curl("sliding").replace({"fatigue.F": 5.0})
+    monkeypatch.setattr(curl, "curl_study", lambda *args, **kwargs: small)
+    lines: list[str] = []
+    demo(tmp_path / "demo", progress=lines.append)
+    run_lines = [line for line in lines if line.startswith("window ")]
+    assert run_lines[-1].startswith("window   2 (cycles 3-5): FAILED")  # the solver's line, not the last one
+    assert lines[-1].startswith("4 repetitions: then the arm was too tired to go on: the solver found no motion for the next 3 "
+                                "cycles (3-5) from the end of cycle 2 (window 2: "), lines[-1]
+    assert "FAILED" not in lines[-1] and lines[-1].endswith(" s of solving")
+    paper = lines[-2]
+    assert paper.startswith(f"the paper reports {PAPER_REPETITIONS[('sliding', 10.0)]['fatigue-torque']} repetitions for this curl")
+    assert f"R = {VARIANTS['authors-code'].R:g} 1/s (text: {VARIANTS['paper'].R:g}" in paper
+    assert "the solver settings are the same" in paper and "studies/curl_sliding_fatigue-torque_authors-code.toml" in paper
+    assert (STUDIES / "curl_sliding_fatigue-torque_authors-code.toml").exists()

@@ -460,3 +460,40 @@ def test_nothing_to_run_needs_no_cluster(tmp_path, thread_client):
     assert sweep_command(path, tmp_path / "out", scheduler="tcp://127.0.0.1:9", progress=lines.append) == 0
     assert lines[0].startswith("1 jobs: 1 already done, 0 to run")
     assert not math.isnan(float(_csv_rows(tmp_path / "out")[0]["objective"]))
+
+
+# -- closed-loop studies -------------------------------------------------------------------------------
+
+
+def test_a_closed_loop_study_sweeps_like_any_study(tmp_path, thread_client):
+    """A sweep whose base is a closed-loop study (the small curl as a 3-cycle window against a
+    plant, 2 cycles): its plant's fatigue rate swept over 2 points on the Dask worker. Each job
+    is the closed loop `run_mpc` gives alone (same plant motion, repetitions and re-plans), in its
+    own complete file; the summary has the swept key."""
+    from conftest import small_mpc_study
+    from fatigue_pin.io.mpc_study import MpcStudy, run_mpc
+
+    base = MpcStudy.from_toml(small_mpc_study(seed=1, max_cycles=3)).replace({"horizon.cycles": 2, "horizon.max_cycles": 2})
+    path = _write_sweep(tmp_path, 'base = "base.toml"\n[grid]\n"plant.fatigue.F" = [0.456, 2.0]\n', base=base)
+    jobs = Sweep.from_file(path).jobs()
+    assert [type(j.study) for j in jobs] == [MpcStudy, MpcStudy]
+    assert [j.study.plant_study.data["fatigue"]["F"] for j in jobs] == [0.456, 2.0]
+    assert all(j.study.study.data == base.study.data for j in jobs)  # the controller's model is the base's
+    out = tmp_path / "out"
+    out.mkdir()
+    outcome = run_sweep(jobs, out, thread_client)
+    assert outcome.ran == 2 and outcome.errors == 0, outcome.rows
+    rows = _csv_rows(out)
+    assert [r["plant.fatigue.F"] for r in rows] == ["0.456", "2.0"]
+    for job in jobs:
+        row = outcome.rows[job.id]
+        assert row["status"] == "converged" and row["error"] == "", row
+        assert read_job_file(out / job.file, job.text)["repetitions"] == row["repetitions"]  # complete, its study
+        swept = read_run(out / job.file, job.study.run_name())
+        alone = run_mpc(MpcStudy.from_toml(job.text))
+        assert swept.study == job.text and swept.name == "mpc/" + base.study.name
+        assert row["repetitions"] == swept.attrs["repetitions"] == alone.attrs["repetitions"]
+        assert row["iterations"] == alone.attrs["iterations"]
+        np.testing.assert_allclose(swept.q, alone.q, rtol=0, atol=1e-10)
+    tired, fresh = (read_run(out / j.file, j.study.run_name()) for j in reversed(jobs))
+    assert tired.fatigue["mf"][-1].max() > fresh.fatigue["mf"][-1].max()  # the swept key reached the plant

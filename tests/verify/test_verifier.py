@@ -178,6 +178,44 @@ def test_progress_counts_every_interval_up_to_the_total(full_file, full_report, 
     assert "PASSED" in captured.out and captured.err == ""
 
 
+def test_the_command_draws_its_bar_on_a_terminal_stderr(full_file):
+    """``fatigue-pin verify`` with standard error on a terminal (a pseudo-terminal here) draws the
+    bar there, up to every interval (50, and 50 more with --single-shooting), while standard
+    output, a pipe, holds the report only."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import subprocess
+    import termios
+
+    import fatigue_pin
+
+    path, name = full_file
+    home = str(Path(fatigue_pin.__file__).resolve().parents[1])
+    env = {**os.environ, "PYTHONPATH": home + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a terminal 120 columns wide
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from fatigue_pin.cli.main import main; sys.exit(main())",
+                             "verify", str(path), "--single-shooting"], stdout=subprocess.PIPE, stderr=slave, env=env)
+    os.close(slave)
+    err = b""
+    while True:  # read the terminal until the child closes it
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:  # EIO: the child has exited and closed its end
+            break
+        if not chunk:
+            break
+        err += chunk
+    out = proc.stdout.read().decode()
+    assert proc.wait() == 0
+    os.close(master)
+    text = err.decode(errors="replace")
+    assert f"verify {name}" in text and "100/100" in text and "interval" in text, text
+    assert out.startswith(f"verify {name} ") and "PASSED" in out and "100/100" not in out and "\r" not in out
+
+
 def test_a_diverging_single_shooting_is_reported_not_raised(full_file, monkeypatch):
     """When the open-loop integration of the rigid body fails (a long swinging horizon), verify
     reports an infinite drift with a note and still integrates the fatigue states to the end."""
