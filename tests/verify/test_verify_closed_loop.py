@@ -96,3 +96,27 @@ def test_a_run_that_counts_no_repetition_has_its_task_not_checked(stored):
     assert not line.checked and line.verdict == "not checked"
     assert any("counts no repetition" in note for note in report.notes)
     assert report.check("initial state").checked
+
+
+def test_the_coupling_at_the_last_node_is_the_plants_next_torque(tmp_path):
+    """The plant delivers at most its capacity 1 - mf at the start of every interval and holds that
+    torque while mf rises: with the open-loop estimator the tired plant saturates, and the last
+    interval's torque with the last node's mf is 0.02 past 1 (verify's u_N := u_{N-1} failed the
+    run). At node N the plant's next delivered torque counts (extras tail_u); without one (the run
+    ended there) node N is not a coupling node."""
+    study = MpcStudy.from_toml(small_mpc_study(TIRED, seed=5, max_cycles=4)).replace({"mpc.estimator": "open-loop"})
+    out = tmp_path / "open_loop.h5"
+    run_closed_loop(study.closed_loop(), ResultFile(out), "mpc/open", study=study.to_toml())
+    run = read_run(out)
+    assert run.extras["tail_u"].shape[0] == 0
+    assert (run.target_loads()[-1] + run.fatigued[-1]).max() > 1.01  # u_{N-1} with mf_N
+    line = verify_run(run).check("coupling TL + m_fatigued in [0, 1]")
+    assert line.passed and line.value < 1e-6, line
+    # a next torque over the last node's capacity fails there
+    capacity = 1.0 - run.fatigued[-1]  # per half: plus, minus of each joint
+    limits = run.signed_limits
+    over = np.array([[1.5 * capacity[0] * limits[0], 0.0, 0.0, 0.0]])  # shoulder_plus at 1.5 times its capacity
+    bad = dataclasses.replace(run, extras={**run.extras, "tail_u": over})
+    line = verify_run(bad).check("coupling TL + m_fatigued in [0, 1]")
+    assert not line.passed and f"node {run.q.shape[0] - 1}" in line.where and "shoulder_plus" in line.where
+    assert line.value == pytest.approx(0.5 * capacity[0], rel=1e-9)
