@@ -5,31 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import small_mpc_study
+from conftest import TIRED_MPC_TABLES, small_mpc_study
 from fatigue_pin.core.errors import ResultFileError
 from fatigue_pin.drivers.mpc_run import estimate_run, estimation_error, prediction_run, report, run_closed_loop
 from fatigue_pin.io.mpc_study import MpcStudy
 from fatigue_pin.io.results import ResultFile, read_run
 
-#: A plant that tires about 1.5 times as fast as the model (F = 0.456 1/s). At twice (0.912, as
-#: studies/curl_mpc.toml) the small curl's plans, on 2 RK4 substeps of 0.05 s, swing the elbow
-#: where their RK4 is far from the exact flow and the plant leaves the elbow's range at node 29.
-#: At 0.7 the plant does 4 whole cycles and 3 repetitions: in cycle 4 it misses the targets.
-TIRED = """
-[plant.fatigue]
-F = 0.7
-
-[plant.noise]
-q = 0.001
-qdot = 0.01
-capacity = 0.01
-
-[mpc]
-replan_every = 10
-estimator = "mhe"
-capacity_margin = 0.03
-end = "receding"
-"""
+TIRED = TIRED_MPC_TABLES
 
 
 @pytest.fixture(scope="module")

@@ -8,31 +8,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from conftest import small_mpc_study
+from conftest import TIRED_MPC_TABLES, small_mpc_study
 from fatigue_pin.cli.main import main
 from fatigue_pin.drivers.mpc_run import run_closed_loop
 from fatigue_pin.io.mpc_study import MpcStudy
 from fatigue_pin.io.results import ResultFile, read_run, write_run
 from fatigue_pin.verify import VerifyTolerances, verify_run
 
-#: The small curl against a plant that tires about 1.5 times as fast, with measurement noise:
-#: 4 whole cycles, 3 repetitions (in cycle 4 the plant misses its targets by more than 0.05 rad).
-TIRED = """
-[plant.fatigue]
-F = 0.7
-
-[plant.noise]
-q = 0.001
-qdot = 0.01
-capacity = 0.01
-
-[mpc]
-replan_every = 10
-estimator = "mhe"
-capacity_margin = 0.03
-end = "receding"
-target_tolerance = 0.05
-"""
+#: 4 whole cycles, 3 repetitions with seed 5 (conftest); target_tolerance 0.05 (the default)
+TIRED = TIRED_MPC_TABLES
 
 
 @pytest.fixture(scope="module")
