@@ -308,7 +308,7 @@ def test_the_closed_loop_study_passes_verify_as_shipped(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_the_closed_loop_study_passes_verify_over_its_tired_cycles(tmp_path, capsys):
-    """The run of round 3, item 9 (``--set horizon.max_cycles=4``, 45 s uncompiled): from cycle 2.5
+    """The run of round 3, item 9 (``--set horizon.max_cycles=4``, 45 s uncompiled): from cycle 1.5
     the tired arm's plans swing the elbow at 25.8 rad/s. On 2 substeps they rode the velocity bound
     22 rad/s off the exact flow and the plant left the elbow's range at node 29 (docs/mpc.md); on
     the shipped 8 the plant does all 4 cycles and verify passes."""
