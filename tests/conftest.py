@@ -88,6 +88,29 @@ def make_curl_run(name: str = "full/fatigue_torque", n_cycles: int = 2, n: int =
     )
 
 
+#: [plant] and [mpc] tables of the small curl against a plant that tires about 1.5 times as fast as
+#: the model (F = 0.7 for 0.456 1/s), with measurement noise, MHE, a re-plan every cycle. With seed
+#: 5 and 4 cycles: 4 whole cycles, 3 repetitions (in cycle 4 the plant misses its targets by more
+#: than 0.05 rad), every interval on the exact flow. At twice the model's F (as
+#: studies/curl_mpc.toml) the small curl's plans, on 2 RK4 substeps of 0.05 s, swing the elbow where
+#: their RK4 is far from the exact flow and the plant leaves the elbow's range at node 29.
+TIRED_MPC_TABLES = """
+[plant.fatigue]
+F = 0.7
+
+[plant.noise]
+q = 0.001
+qdot = 0.01
+capacity = 0.01
+
+[mpc]
+replan_every = 10
+estimator = "mhe"
+capacity_margin = 0.03
+end = "receding"
+"""
+
+
 def small_mpc_study(tables: str = "", seed: int | None = None, max_cycles: int = 3) -> str:
     """TOML text of the small curl (10 intervals per cycle, 2 RK4 substeps, uncompiled) as a
     closed-loop study with a 3-cycle window; ``tables`` adds [plant...] and [mpc] tables."""

@@ -23,7 +23,9 @@ r = A n, the plant therefore follows the sliding-horizon run. With ``end = "rece
 controller instead re-plans until the plant has done ``max_cycles`` cycles (no open-loop tail).
 
 The plant's *repetitions* are its leading cycles whose task error (:func:`task_errors`) is at
-most ``target_tolerance``.
+most ``target_tolerance`` and whose every interval follows the exact flow (:meth:`Plant.flow_gap`
+within the gap tolerances of :mod:`fatigue_pin.core.accuracy`, verify's): a cycle is credited only
+where ``fatigue-pin verify`` accepts the plant's motion.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from fatigue_pin.core.accuracy import GAP_TOLERANCE, GAP_TOLERANCE_FATIGUE
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.estimation import ESTIMATORS, History, MheSettings, make_estimator
@@ -160,10 +163,27 @@ def task_errors(problem: Problem, x: np.ndarray, n_cycles: int) -> np.ndarray:
     return err
 
 
-def repetitions_achieved(errors: np.ndarray, tolerance: float) -> int:
-    """Leading cycles whose task error is at most ``tolerance``."""
-    bad = np.flatnonzero(np.asarray(errors) > tolerance)
-    return int(bad[0]) if bad.size else int(np.asarray(errors).size)
+def repetitions_achieved(errors: np.ndarray, tolerance: float, follows_flow: np.ndarray | None = None) -> int:
+    """Leading cycles whose task error (cycles,) is at most ``tolerance`` and, with
+    ``follows_flow`` (cycles,) bool, whose motion follows the exact flow."""
+    bad = np.asarray(errors) > tolerance
+    if follows_flow is not None:
+        bad = bad | ~np.asarray(follows_flow, dtype=bool)
+    first = np.flatnonzero(bad)
+    return int(first[0]) if first.size else int(bad.size)
+
+
+def cycle_gaps(gaps: np.ndarray, n: int, n_cycles: int) -> np.ndarray:
+    """The largest flow gap of every cycle, (n_cycles, 2) (q and qdot, fatigue states), from the
+    gaps of every interval (intervals >= n_cycles n, 2)."""
+    gaps = np.asarray(gaps, dtype=float).reshape(-1, 2)[: n_cycles * n]
+    return gaps.reshape(n_cycles, n, 2).max(axis=1) if n_cycles else np.zeros((0, 2))
+
+
+def follows_flow(gaps: np.ndarray) -> np.ndarray:
+    """Whether each row (q and qdot gap, fatigue gap) is within verify's gap tolerances, bool."""
+    gaps = np.asarray(gaps, dtype=float).reshape(-1, 2)
+    return (gaps[:, 0] <= GAP_TOLERANCE) & (gaps[:, 1] <= GAP_TOLERANCE_FATIGUE)
 
 
 @dataclass
@@ -247,6 +267,8 @@ class ClosedLoop:
         if self.plant_problem.task.dt != task.dt:
             raise ParameterError(f"plant: interval {self.plant_problem.task.dt} s differs from the model's {task.dt} s")
         self._ocps: dict[int, Ocp] = {}
+        #: flow gaps of the plant's intervals, per node: (x_k, x_k+1, delivered u_k, gaps)
+        self._gaps: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float]]] = {}
         #: warm-start index maps per (previous phase, phase, intervals between)
         self._shifts: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
         self.ocp = self.window_ocp(0)
@@ -457,6 +479,26 @@ class ClosedLoop:
         """Task error of every completed cycle of the plant (:func:`task_errors`)."""
         return task_errors(self.plant_problem, np.array(state.x), self.cycles(state))
 
+    def flow_gaps(self, state: LoopState) -> np.ndarray:
+        """The flow gap (:meth:`Plant.flow_gap`) of every interval the plant did, (intervals, 2):
+        q and qdot (rad, rad/s), fatigue states. Each interval is re-integrated once (the gaps
+        are kept while its nodes and torques stay those of ``state``)."""
+        x, u = state.x, state.history.u_delivered
+        out = np.zeros((len(x) - 1, 2))
+        for k in range(len(x) - 1):
+            kept = self._gaps.get(k)
+            if kept is None or not (np.array_equal(kept[0], x[k]) and np.array_equal(kept[1], x[k + 1])
+                                    and np.array_equal(kept[2], u[k])):
+                kept = (np.array(x[k]), np.array(x[k + 1]), np.array(u[k]), self.plant.flow_gap(x[k], u[k], k, x[k + 1]))
+                self._gaps[k] = kept
+            out[k] = kept[3]
+        return out
+
+    def cycle_gaps(self, state: LoopState) -> np.ndarray:
+        """The largest flow gap of every completed cycle, (cycles, 2) (:func:`cycle_gaps`)."""
+        return cycle_gaps(self.flow_gaps(state), self.n, self.cycles(state))
+
     def repetitions(self, state: LoopState) -> int:
-        """Cycles the plant achieved: leading cycles within ``target_tolerance``."""
-        return repetitions_achieved(self.task_errors(state), self.mpc.target_tolerance)
+        """Cycles the plant achieved: leading cycles within ``target_tolerance`` whose motion
+        follows the exact flow (:func:`follows_flow` of :meth:`cycle_gaps`)."""
+        return repetitions_achieved(self.task_errors(state), self.mpc.target_tolerance, follows_flow(self.cycle_gaps(state)))

@@ -11,8 +11,15 @@ length dt it
    normal draw per interval);
 3. integrates ``qddot = ABA(q, qdot, tau_plus + tau_minus + d)`` (numeric Pinocchio on the
    plant's model) and ``dm/dt`` of every half (its fatigue model's right-hand side, evaluated
-   by :meth:`SignedTorqueActuators.fatigue_rates`) with ``substeps`` classical RK4 steps, or
-   with scipy's adaptive ``solve_ivp`` (``integrator = "rk45"``).
+   by :meth:`SignedTorqueActuators.fatigue_rates`) with scipy's adaptive ``solve_ivp``
+   (``integrator = "rk45"``, the default, with ``rtol`` and ``atol``: the plant stands for
+   reality, so it follows the exact flow), or with ``substeps`` classical RK4 steps
+   (``integrator = "rk4"``: with the controller's substeps a plant equal to the model integrates
+   exactly as the plan does, also where the plan's grid is too coarse for its motion).
+
+:meth:`Plant.flow_gap` re-integrates an interval the plant did with the reference integration of
+:mod:`fatigue_pin.core.accuracy` (that of ``fatigue-pin verify``): the closed loop credits a
+repetition only where every interval of the cycle is within verify's gap tolerances of it.
 
 What the controller sees (:meth:`Plant.measure`, :meth:`Plant.probe`): q and qdot with normal
 noise of std ``noise.q`` (rad) and ``noise.qdot`` (rad/s), and the capacity ``1 - mf`` of every
@@ -32,6 +39,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
+from fatigue_pin.core.accuracy import REFERENCE_ATOL, REFERENCE_METHOD, REFERENCE_RTOL
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.core.text import shown
@@ -121,16 +129,18 @@ class PlantSettings:
         noise: measurement noise.
         disturbance: torque disturbance.
         seed: seed of every random draw (an integer >= 0).
-        integrator: ``rk4`` (``substeps`` classical steps per interval) or ``rk45`` (scipy's
-            adaptive ``solve_ivp`` with ``rtol``, ``atol``).
-        substeps: RK4 steps per interval; ``None``: the controller's transcription's.
-        rtol, atol: tolerances of ``rk45``.
+        integrator: ``rk45`` (scipy's adaptive ``solve_ivp``, RK45 with ``rtol``, ``atol``;
+            the default: about 1e-8 of the exact flow where 2 RK4 substeps of 0.05 s are 1 rad/s
+            off it) or ``rk4`` (``substeps`` classical steps per interval: the plan's own scheme
+            with the controller's substeps, for comparisons with the sliding horizon).
+        substeps: RK4 steps per interval of ``rk4``; ``None``: the controller's transcription's.
+        rtol, atol: relative and absolute (in each state's unit) tolerances of ``rk45``.
     """
 
     noise: PlantNoise = field(default_factory=PlantNoise)
     disturbance: PlantDisturbance = field(default_factory=PlantDisturbance)
     seed: int = 0
-    integrator: str = "rk4"
+    integrator: str = "rk45"
     substeps: int | None = None
     rtol: float = 1e-9
     atol: float = 1e-11
@@ -230,9 +240,7 @@ class Plant:
         u = self.deliver(x, u_command)
         d = self.disturbance(node)
         if self.settings.integrator == "rk45":
-            sol = solve_ivp(lambda t, y: self.rhs(y, u, d), (0.0, self.dt), x, method="RK45",
-                            rtol=self.settings.rtol, atol=self.settings.atol)
-            return sol.y[:, -1].copy(), u
+            return self._solve(x, u, d, "RK45", self.settings.rtol, self.settings.atol), u
         h = self.dt / self.substeps
         for _ in range(self.substeps):
             k1 = self.rhs(x, u, d)
@@ -241,6 +249,34 @@ class Plant:
             k4 = self.rhs(x + h * k3, u, d)
             x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return x, u
+
+    def _solve(self, x: np.ndarray, u: np.ndarray, d: np.ndarray, method: str, rtol: float, atol: float) -> np.ndarray:
+        """``solve_ivp`` over one interval from ``x`` (nx,) with ``u`` (nu,) and ``d`` (nv,) held;
+        NaN (nx,) where it fails or the state turns non-finite."""
+        with np.errstate(all="ignore"):
+            sol = solve_ivp(lambda t, y: self.rhs(y, u, d), (0.0, self.dt), x, method=method, rtol=rtol, atol=atol)
+        if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
+            return np.full(x.shape, np.nan)
+        return sol.y[:, -1].copy()
+
+    def flow_gap(self, x: np.ndarray, u_delivered: np.ndarray, node: int, x_next: np.ndarray) -> tuple[float, float]:
+        """How far the plant's interval from ``x`` (nx,) at ``node`` to ``x_next`` (nx,) under the
+        delivered torques ``u_delivered`` (nu,) is from the exact flow: the reference integration
+        (:mod:`fatigue_pin.core.accuracy`, verify's) from ``x`` with the same torques and
+        disturbance. Returns the largest gap of (q, qdot) (rad, rad/s) and of the fatigue states
+        (dimensionless); ``inf`` where the reference integration fails."""
+        L = self.layout
+        x = np.asarray(x, dtype=float)
+        if not np.all(np.isfinite(x)):
+            return math.inf, math.inf
+        exact = self._solve(x, np.asarray(u_delivered, dtype=float), self.disturbance(node), REFERENCE_METHOD,
+                            REFERENCE_RTOL, REFERENCE_ATOL)
+        gap = np.abs(exact - np.asarray(x_next, dtype=float))
+        if not np.all(np.isfinite(gap)):
+            return math.inf, math.inf
+        body = gap[: L.nq + L.nv]
+        fatigue = gap[L.nq + L.nv :]
+        return float(body.max(initial=0.0)), float(fatigue.max(initial=0.0))
 
     # -- what the controller sees ----------------------------------------------------------------
 

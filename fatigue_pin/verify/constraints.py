@@ -5,6 +5,8 @@ the models' own ``rates`` (docs/verify.md gives the equations)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 
 import numpy as np
@@ -42,9 +44,23 @@ def finite_check(s: Stored) -> VerifyCheck:
 
 def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float]:
     """``TL + m_fatigued`` in [0, 1] at every node, with ``u_N := u_{N-1}`` and m_fatigued the
-    stored fatigued fraction of every half (:attr:`RunResult.fatigued`)."""
+    stored fatigued fraction of every half (:attr:`RunResult.fatigued`).
+
+    A closed-loop run's plant delivers, at the start of every interval, at most its capacity
+    ``1 - mf`` and holds that torque while mf rises, so ``u_{N-1}`` with ``mf_N`` may exceed 1 (the
+    open-loop estimator's tired plant: 0.026): there ``u_N`` is the torque the plant delivered next
+    (``extras["tail_u"]``), and node N is left out when the plant did nothing after it."""
     TL_nodes = np.vstack([s.TL, s.TL[-1:]])
-    c = TL_nodes + np.asarray(s.run.fatigued, dtype=float)
+    mf = np.asarray(s.run.fatigued, dtype=float)
+    if s.horizon == "mpc":
+        tail = np.asarray(s.run.extras.get("tail_u", np.zeros((0, 0))), dtype=float)
+        nv = s.run.tau_plus.shape[1]
+        if tail.ndim == 2 and tail.shape[0] > 0 and tail.shape[1] == 2 * nv:
+            after = dataclasses.replace(s.run, tau_plus=tail[:1, :nv], tau_minus=tail[:1, nv:])
+            TL_nodes[-1] = after.target_loads()[0]
+        else:
+            TL_nodes, mf = TL_nodes[:-1], mf[:-1]
+    c = TL_nodes + mf
     value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
     return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value
 

@@ -15,6 +15,7 @@ from typing import Sequence
 
 import numpy as np
 
+from fatigue_pin.core.accuracy import GAP_TOLERANCE, GAP_TOLERANCE_FATIGUE, REFERENCE_ATOL, REFERENCE_METHOD, REFERENCE_RTOL
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.text import shown
 
@@ -22,9 +23,9 @@ __all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_METHOD", "METHODS", "VerifyT
            "VerifyCheck", "VerifyReport", "worst"]
 
 #: Default tolerances and method of the reference integration.
-DEFAULT_RTOL = 1e-10
-DEFAULT_ATOL = 1e-12
-DEFAULT_METHOD = "DOP853"
+DEFAULT_RTOL = REFERENCE_RTOL
+DEFAULT_ATOL = REFERENCE_ATOL
+DEFAULT_METHOD = REFERENCE_METHOD
 #: The ``solve_ivp`` methods verify accepts.
 METHODS = ("DOP853", "RK45", "RK23", "Radau", "BDF", "LSODA")
 
@@ -48,8 +49,8 @@ class VerifyTolerances:
         bound: q, qdot, torques (N m) and fatigue states outside their bounds.
     """
 
-    gap: float = 1e-3
-    gap_fatigue: float = 1e-5
+    gap: float = GAP_TOLERANCE
+    gap_fatigue: float = GAP_TOLERANCE_FATIGUE
     task: float = 1e-4
     coupling: float = 1e-4
     bound: float = 1e-4

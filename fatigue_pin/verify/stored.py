@@ -66,7 +66,7 @@ class Stored:
         run: the run; robot: the :class:`~fatigue_pin.robot.model.RobotModel` it was solved on;
         task: the stored study's :class:`~fatigue_pin.ocp.task.Task` (None without a study).
         halves: the actuator halves; limits: signed torque limits, (2 nv,) (plus, minus per joint).
-        horizon: ``full`` or ``sliding``; dt: interval length (s); n: intervals per cycle;
+        horizon: ``full``, ``sliding`` or ``mpc``; dt: interval length (s); n: intervals per cycle;
         substeps: RK4 substeps of the transcription (0: unknown).
         Y: stored (q, qdot) per node, (N + 1, 2 nq); M: fatigue states, (N + 1, states), each
         half's states in its model's order; tau: joint torques tau_plus + tau_minus, (N, nv);

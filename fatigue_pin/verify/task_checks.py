@@ -19,6 +19,13 @@ with ``p_k``, ``R_k`` the frame's world position and rotation at node k, and the
 :meth:`Task.nodes` gives for the item's phase (every node for ranges and planes without a phase);
 for a sliding run, the nodes its windows gave the phase
 (:func:`~fatigue_pin.drivers.sliding.stitched_nodes`: a window's node 0 is its start state).
+For a closed-loop run (horizon ``mpc``), the plant's, the task lines check the nodes of the cycles
+the run counts as repetitions (its ``repetitions`` attribute: nodes 0 to ``repetitions n``), with
+the tolerance it counted them with (its ``target_tolerance``, rad or m) in place of ``--task-tol``:
+the claim a closed-loop run makes is that the plant met its task within that tolerance in those
+cycles (:meth:`fatigue_pin.drivers.mpc.ClosedLoop.repetitions`), not that a noisy plant driven by
+feed-forward torques met it to 1e-4. A run that counts no repetition has its task lines "not
+checked", with a note; the initial state keeps ``--task-tol`` (the plant starts at it exactly).
 A kind verify does not know (e.g. a Python :class:`StateConstraint`, whose expression is the
 package's own CasADi) is shown as "not checked", with a note naming it. The initial state is
 checked against the task's initial configuration, zero velocity and every half at rest.
@@ -164,13 +171,20 @@ def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
     if s.task is None:
         return [VerifyCheck("task", float("nan"), "", tol, "not checked"), VerifyCheck("initial state", float("nan"), "", tol, "not checked")]
     task = s.task
+    nodes = _phase_nodes(s, notes)
+    item_tol, counted = tol, None
+    if s.horizon == "mpc":
+        item_tol, counted = _closed_loop_scope(s, tol, notes)
+        nodes = _within(nodes, counted * s.n) if counted is not None else nodes
     ctx = _Context(np.asarray(s.run.q, dtype=float), s.joints, _Frames(s.robot.pin_model, np.asarray(s.run.q, dtype=float)),
-                   _phase_nodes(s, notes))
+                   nodes)
     checks = []
     for cls, kind in KINDS.items():
         items = [i for i in task.items if type(i) is cls]
-        if items:
-            checks.append(_kind_line(kind, items, ctx, tol, notes))
+        if items and counted == 0:
+            checks.append(VerifyCheck(kind.line, float("nan"), kind.unit, item_tol, "not checked"))
+        elif items:
+            checks.append(_kind_line(kind, items, ctx, item_tol, notes))
     unknown: dict[str, int] = {}
     for item in task.items:
         if type(item) not in KINDS:
@@ -183,6 +197,34 @@ def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
         notes.append("the stored task has no items: only the initial state is checked")
     checks.append(_initial_state(s, tol, notes))
     return checks
+
+
+def _closed_loop_scope(s: Stored, tol: float, notes: list[str]) -> tuple[float, int | None]:
+    """The tolerance of a closed-loop run's task lines and the cycles they check: its
+    ``target_tolerance`` and ``repetitions`` (``tol`` and every stored cycle, with a note, for a
+    run that lacks them)."""
+    a = s.run.attrs
+    try:
+        target, counted = float(a["target_tolerance"]), int(a["repetitions"])
+    except (KeyError, TypeError, ValueError):
+        notes.append("closed-loop run without target_tolerance and repetitions attributes: its task is checked on every "
+                     f"stored cycle with the task tolerance {tol:g}")
+        return tol, None
+    if not math.isfinite(target) or target < 0:
+        notes.append(f"closed-loop run with target_tolerance = {target:g}: its task is checked with the task tolerance {tol:g}")
+        target = tol
+    counted = max(0, min(counted, s.N // s.n))
+    if counted == 0:
+        notes.append("closed-loop run that counts no repetition: its task is not checked (it claims no cycle)")
+    else:
+        notes.append(f"closed-loop run: the task is checked on the {counted} cycle(s) it counts as repetitions (nodes 0-"
+                     f"{counted * s.n}), within its target_tolerance {target:g} (rad or m)")
+    return target, counted
+
+
+def _within(nodes: Callable[[float | None], list[int]], last: int) -> Callable[[float | None], list[int]]:
+    """``nodes`` restricted to the nodes up to ``last``."""
+    return lambda at: [k for k in nodes(at) if k <= last]
 
 
 def _phase_nodes(s: Stored, notes: list[str]) -> Callable[[float | None], list[int]]:

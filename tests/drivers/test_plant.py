@@ -109,3 +109,27 @@ def test_bad_plant_settings_name_the_key(make, key):
         make()
     message = str(err.value)
     assert message.startswith(key + " = ") and "\n" not in message
+
+
+def test_the_default_plant_follows_the_exact_flow_where_the_plans_rk4_does_not(small_problem):
+    """The state of the closed loop's flail (elbow at -30 rad/s): 2 RK4 substeps of 0.05 s, the
+    plan's own scheme, end about 1 rad/s from scipy's DOP853 on pinocchio.aba; the default plant
+    (adaptive) within 1e-6, and its flow gap (verify's reference) is within verify's tolerances."""
+    model, L = small_problem.model, small_problem.layout
+    x0 = _state(small_problem, 0.2)
+    x0[L.v] = [10.0, -30.0]
+    u = np.array([8.0, 20.0, -3.0, -1.0])
+    data = model.pin_model.createData()
+    coarse = Plant(small_problem, 0.1, PlantSettings(integrator="rk4", substeps=2))
+    default = Plant(small_problem, 0.1, PlantSettings())
+    assert default.settings.integrator == "rk45"
+
+    def body(t, y):
+        return np.concatenate([y[2:], pin.aba(model.pin_model, data, y[:2], y[2:], u[:2] + u[2:])])
+
+    ref = solve_ivp(body, (0, 0.1), x0[:4], method="DOP853", rtol=1e-12, atol=1e-13).y[:, -1]
+    x_coarse, x_default = coarse.step(x0, u, 0)[0], default.step(x0, u, 0)[0]
+    assert np.abs(x_coarse[:4] - ref).max() > 0.1
+    np.testing.assert_allclose(x_default[:4], ref, atol=1e-6)
+    assert default.flow_gap(x0, u, 0, x_default)[0] < 1e-6
+    assert coarse.flow_gap(x0, u, 0, x_coarse)[0] > 0.1

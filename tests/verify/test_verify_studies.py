@@ -8,7 +8,9 @@ their shipped grid (:data:`OWN_GRID`): a shipped study must pass verify as shipp
 grids are chosen for it (RK4 steps of 0.025 s; docs/verify.md). The curl studies run on a grid
 whose RK4 error is below verify's default gap tolerances (1e-3 rad, rad/s; 1e-5 for the fatigue
 states) and cheaper than the paper's 50 intervals per cycle uncompiled; the paper's own grid is
-verified in tests/verify/test_verifier.py.
+verified in tests/verify/test_verifier.py. The closed-loop study (curl_mpc.toml) is verified
+twice: its model's plan as above, and its closed loop, the plant's run, on its shipped grid
+(:func:`test_the_closed_loop_study_passes_verify_as_shipped`).
 """
 
 from __future__ import annotations
@@ -265,3 +267,51 @@ def test_physiological_payload_curl_passes(solved):
     bare = Study.from_toml(run.study).replace({"model.payload": None})
     r2 = verify_run(_with_study(run, bare))  # 6.4 kg less in the hand
     assert "gap qdot" in [c.name for c in r2.failures] and r2.gap_qdot > 1.0
+
+
+# -- the closed-loop study: the plant's run, on the controller's shipped grid -----------------------
+
+
+def _closed_loop_run(tmp_path, cycles: int, capsys):
+    """``fatigue-pin mpc studies/curl_mpc.toml --set horizon.max_cycles=<cycles>`` (uncompiled),
+    then ``fatigue-pin verify`` of its run: (run, verify's exit code, its report)."""
+    out = tmp_path / "curl_mpc.h5"
+    assert main(["mpc", str(STUDIES / "curl_mpc.toml"), "--out", str(out), "--set", f"horizon.max_cycles={cycles}",
+                 "--set", "solver.compile=false"]) == 0
+    capsys.readouterr()
+    code = main(["verify", str(out)])
+    return read_run(out), code, capsys.readouterr().out
+
+
+def _check_closed_loop(run, code, text, cycles: int) -> None:
+    from fatigue_pin.io.mpc_study import MpcStudy
+
+    assert code == 0 and "  PASSED" in text, text
+    shipped = MpcStudy.from_file(STUDIES / "curl_mpc.toml").study.data
+    stored = MpcStudy.from_toml(run.study).study.data
+    for key in ("task", "transcription", "fatigue", "costs"):  # the shipped study, only its cycles shortened
+        assert stored[key] == shipped[key], key
+    assert run.attrs["repetitions"] == run.n_cycles == cycles
+    assert f"the task is checked on the {cycles} cycle(s) it counts as repetitions" in text
+    assert np.abs(run.qdot).max() < 10 * np.pi  # the plans' swing stays below the velocity bound
+
+
+def test_the_closed_loop_study_passes_verify_as_shipped(tmp_path, capsys):
+    """studies/curl_mpc.toml's closed loop (the plant's run), on its shipped grid (10 intervals,
+    8 RK4 substeps) for 3 cycles (its window's, the fewest it allows): verify passes, the task
+    within the run's target tolerance on the cycles it counts, the tired swing of cycle 2 (about
+    25 rad/s at the elbow) on the exact flow."""
+    run, code, text = _closed_loop_run(tmp_path, 3, capsys)
+    _check_closed_loop(run, code, text, 3)
+    assert np.abs(run.qdot[:, 1]).max() > 20.0  # the swing is there, and physical
+
+
+@pytest.mark.slow
+def test_the_closed_loop_study_passes_verify_over_its_tired_cycles(tmp_path, capsys):
+    """The run of round 3, item 9 (``--set horizon.max_cycles=4``, 45 s uncompiled): from cycle 1.5
+    the tired arm's plans swing the elbow at 25.8 rad/s. On 2 substeps they rode the velocity bound
+    22 rad/s off the exact flow and the plant left the elbow's range at node 29 (docs/mpc.md); on
+    the shipped 8 the plant does all 4 cycles and verify passes."""
+    run, code, text = _closed_loop_run(tmp_path, 4, capsys)
+    _check_closed_loop(run, code, text, 4)
+    assert np.abs(run.qdot[:, 1]).max() > 20.0  # the swing is there, and physical
