@@ -30,7 +30,7 @@ namespace
   {
     pinocchio::Model model;
     model.loadFromString(model_text); // throws boost::archive::archive_exception on bad input
-    return fatigue_pin::serialized_sx_dynamics(model);
+    return {fatigue_pin::serialized_sx_aba(model), fatigue_pin::serialized_sx_rnea(model)};
   }
 
   std::string aba_derivatives_from_string(const std::string & model_text)

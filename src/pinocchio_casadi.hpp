@@ -1,8 +1,8 @@
-// Shared declaration between the two translation units of fatigue_pin._pinocchio_casadi.
+// Shared declarations between the translation units of fatigue_pin._pinocchio_casadi.
 //
-// The extension is split in two files only to halve the build time on small machines: the
-// templated algorithms on casadi::SX (pinocchio_casadi_sx.cpp) take most of the compile time, and
-// the Python module with the model deserialisation (pinocchio_casadi.cpp) compiles in parallel.
+// The extension is split into one file per Pinocchio algorithm on casadi::SX only to shorten the
+// build on small machines: each file's template instantiations take tens of seconds of compiler
+// time, and separate files compile in parallel (CMakeLists.txt).
 #pragma once
 
 #include <cstddef>
@@ -14,9 +14,13 @@
 
 namespace fatigue_pin
 {
-  /// Runs pinocchio::aba and pinocchio::rnea on casadi::SX symbols over `model` and returns the
-  /// serialized casadi Functions (aba(q, v, tau) -> ddq, rnea(q, v, a) -> tau).
-  std::pair<std::string, std::string> serialized_sx_dynamics(const pinocchio::Model & model);
+  /// Runs pinocchio::aba on casadi::SX symbols over `model` and returns the serialized casadi
+  /// Function aba(q, v, tau) -> ddq (pinocchio_casadi_aba.cpp).
+  std::string serialized_sx_aba(const pinocchio::Model & model);
+
+  /// Runs pinocchio::rnea on casadi::SX symbols over `model` and returns the serialized casadi
+  /// Function rnea(q, v, a) -> tau (pinocchio_casadi_rnea.cpp).
+  std::string serialized_sx_rnea(const pinocchio::Model & model);
 
   /// Runs pinocchio::computeABADerivatives on casadi::SX symbols over `model` and returns the
   /// serialized casadi Function aba_derivatives(q, v, tau) -> (ddq, ddq_dq, ddq_dv, Minv), the
