@@ -190,7 +190,7 @@ def fill(cls: type, table: Any, path: str, *, skip: tuple[str, ...] = (), rename
         raise StudyError(f"unknown key {path}.{unknown[0]}; expected one of {sorted(keys)}")
     out: dict[str, Any] = {}
     for name, key in keys.items():
-        if name in table:
+        if name in table and not (drop_none and table[name] is None):  # None given: not given (TOML has no None)
             value = table[name]
             if is_toml_number(value) and not math.isfinite(float(value)):
                 raise StudyError(f"{path}.{name} = {shown(value)}: expected a finite number" + (f" ({key.expected})" if key.expected else ""))

@@ -421,8 +421,11 @@ CASES: list[Case] = [
     Case("run-name-inside-run", FILES, "`run --name full/a/x` (inside run full/a)", r"run name 'full/a/x' lies inside run 'full/a'",
          lambda e: ["run", e.study(), "--name", "full/a/x", "--out", str(e.existing)]),
     Case("run-name-grammar", FILES, "`run --name a//b` (an empty segment; also `.`, `/`, `search/...`)",
-         r"run name 'a//b': expected segments of letters, digits and _ - . \+ = , separated by '/'",
+         r"run name 'a//b': expected segments of letters and digits of any script and _ - . \+ = , separated by '/'",
          lambda e: ["run", e.study(), "--name", "a//b", "--out", str(e.existing)]),
+    Case("run-name-character", FILES, "`run --name 'bïcèps_💪 run'` (letters of any script are letters; an emoji and a space are not)",
+         r"run name 'bïcèps_💪 run': holds '💪' \(U\+1F4AA\), which is not allowed; expected segments of letters and digits",
+         lambda e: ["run", e.study(), "--name", "bïcèps_💪 run", "--out", str(e.existing)]),
     # -- fatigue data: presets, endurance CSVs, endurance tasks ------------------------------------
     Case("preset-json-shape", FATIGUE, "a preset JSON whose `model` is a list", r"model = \['3cc'\]: expected one of",
          lambda e: ["endurance", "--preset", e.write("p.json", '{"model": ["3cc"], "F": 0.01, "R": 0.001, "LD": 10, "LR": 10}'),
