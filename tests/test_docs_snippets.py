@@ -114,8 +114,12 @@ SNIPPETS = _snippets()
 
 
 def _env() -> dict[str, str]:
-    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return env
+    """The children import the fatigue_pin this process imported (installed, or a tree on
+    PYTHONPATH), not the source tree beside the docs, which has no compiled extension."""
+    import fatigue_pin
+
+    home = str(Path(fatigue_pin.__file__).resolve().parents[1])
+    return dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=home + os.pathsep + os.environ.get("PYTHONPATH", ""))
 
 
 _MAIN = "import sys; from fatigue_pin.cli.main import main; sys.exit(main(sys.argv[1:]))"

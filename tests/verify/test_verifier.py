@@ -197,7 +197,8 @@ def test_the_command_draws_its_bar_on_a_terminal_stderr(full_file):
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a terminal 120 columns wide
     proc = subprocess.Popen([sys.executable, "-c", "import sys; from fatigue_pin.cli.main import main; sys.exit(main())",
-                             "verify", str(path), "--single-shooting"], stdout=subprocess.PIPE, stderr=slave, env=env)
+                             "verify", str(path), "--single-shooting"], stdout=subprocess.PIPE, stderr=slave, env=env,
+                            cwd=Path(path).parent)  # not the source tree (python -c puts the folder first on sys.path)
     os.close(slave)
     err = b""
     while True:  # read the terminal until the child closes it
