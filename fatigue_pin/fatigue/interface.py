@@ -79,6 +79,9 @@ class FatigueModel:
       :meth:`as_dict` when they differ from their default;
     * ``fatigued_state``: the state that is the fatigued fraction, bounded with the target load
       by the coupling constraint ``0 <= TL + m_fatigued <= 1`` of the OCPs;
+    * ``active_state``: the state that is the active fraction, whose product with the torque
+      limit is the half's torque under the ``active`` coupling (docs/model.md), or None if the
+      model has none;
     * :meth:`rhs`: the right-hand side as an SX ``casadi.Function``
       ``(m[n_states], TL, p[n_params]) -> dm[n_states]`` (1/s);
     * :meth:`rest_state`: the state of a rested actuator, shape (n_states,).
@@ -93,6 +96,7 @@ class FatigueModel:
     param_units: ClassVar[tuple[str, ...]] = ()
     option_names: ClassVar[tuple[str, ...]] = ()
     fatigued_state: ClassVar[str] = "mf"
+    active_state: ClassVar[str | None] = "ma"
     #: What the states of a valid state sum to (Xia: ma + mr + mf = 1), or None if nothing.
     state_total: ClassVar[float | None] = None
 

@@ -1,22 +1,29 @@
 """Signed torque actuators, each half carrying its own fatigue model (any :class:`FatigueModel`).
 
-Every joint ``j`` of a model is driven by two halves whose torques add up to the joint torque:
+Every *actuated* joint ``j`` of a model is driven by two halves whose torques add up to the joint
+torque:
 
 * the flexion half ``j_plus`` with torque ``tau_plus`` in [0, tau_upper] (N m or N), and
 * the extension half ``j_minus`` with torque ``tau_minus`` in [tau_lower, 0].
 
+A *passive* joint has no actuator: no halves, no fatigue states, and a joint torque of 0
+(:class:`Actuation` ``passive``, or a zero effort limit in the URDF).
+
 Each half has a target load ``TL = tau / tau_limit`` in [0, 1] (``tau_plus / tau_upper`` or
 ``tau_minus / tau_lower``) and the fatigue states its model declares (Xia's 3CC: ``(ma, mr, mf)``),
-driven by the model's right-hand side.
+driven by the model's right-hand side. How the torque and the fatigue are coupled is the
+actuators' :attr:`~SignedTorqueActuators.coupling_kind` (:data:`COUPLINGS`, docs/model.md).
 
-Orderings (used by every vector of this module):
+Orderings (used by every vector of this module), with na actuated joints of nv:
 
-* halves: for each joint in model order, the plus half then the minus half, i.e.
-  ``(j0_plus, j0_minus, j1_plus, j1_minus, ...)`` (``n_halves = 2 * nv``);
+* halves: for each actuated joint in model order, the plus half then the minus half, i.e.
+  ``(j0_plus, j0_minus, j1_plus, j1_minus, ...)`` (``n_halves = 2 * na``);
+* controls ``u = (tau_plus, tau_minus)`` (shape (nu,) = (2 na,)): the plus halves' torques of the
+  actuated joints in model order, then the minus halves' (:meth:`SignedTorqueActuators.control_rows`);
+  the joint torque (nv,) is :meth:`SignedTorqueActuators.joint_torque` (0 on passive joints);
 * fatigue states: the states of each half consecutively, halves in the order above; where a
   half's states start is :meth:`SignedTorqueActuators.state_offsets`, and a state is addressed by
-  name with :meth:`SignedTorqueActuators.state_rows` (``n_states`` = the sum of the halves' states);
-* torques ``tau_plus`` and ``tau_minus``: one entry per joint in model order (shape (nv,)).
+  name with :meth:`SignedTorqueActuators.state_rows` (``n_states`` = the sum of the halves' states).
 
 The symbolic methods accept CasADi SX, MX or DM and numpy arrays, and return CasADi expressions.
 """
@@ -33,16 +40,44 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.core.settings import check_fields, is_strs, setting
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import FatigueParams
 from fatigue_pin.core.text import shown
 
-__all__ = ["ActuatorHalf", "FatigueGroup", "SignedTorqueActuators", "ParamsSpec"]
+__all__ = ["COUPLINGS", "Actuation", "ActuatorHalf", "FatigueGroup", "SignedTorqueActuators", "ParamsSpec"]
 
 Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
 #: Fatigue parameters for :meth:`SignedTorqueActuators.from_model`: one set for every half, or a
 #: dict joint name -> one set for both halves or a ``(plus, minus)`` pair.
 ParamsSpec = Union[FatigueModel, Mapping[str, Union[FatigueModel, tuple[FatigueModel, FatigueModel]]]]
+
+
+#: How the torque of a half and its fatigue are coupled (docs/model.md, "Couplings"):
+#: ``tl+mf<=1``: the torque is the control, fatigue is integrated from its target load TL, and
+#: ``0 <= TL + m_fatigued <= 1`` at every node (the paper's); ``observed``: the same without that
+#: row (fatigue integrated, no limit on the torque); ``active``: the control sets TL only, and the
+#: torque the half delivers is ``m_active * limit`` (the torque is driven through the fatigue).
+COUPLINGS = ("tl+mf<=1", "observed", "active")
+
+
+@dataclass(frozen=True)
+class Actuation:
+    """The ``[actuators]`` table of a study: which joints are passive and how the torque and the
+    fatigue are coupled.
+
+    Attributes:
+        passive: joints without an actuator (no halves, no fatigue states, torque 0); a joint
+            whose URDF effort limit is 0 is passive too, named here or not.
+        coupling: one of :data:`COUPLINGS` (docs/model.md).
+    """
+
+    passive: tuple[str, ...] = setting((), "a list of joint names", is_strs)
+    coupling: str = setting("tl+mf<=1", f"one of {list(COUPLINGS)}", lambda v: v in COUPLINGS)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        object.__setattr__(self, "passive", tuple(self.passive))
 
 
 class _HasTorqueLimits(Protocol):
@@ -132,31 +167,52 @@ def _column(x: Expr, n: int, what: str) -> Expr:
 
 
 class SignedTorqueActuators:
-    """Signed torque actuators of a model: a plus and a minus half per joint, each with 3CC-S fatigue.
+    """Signed torque actuators of a model: a plus and a minus half per actuated joint, each with
+    its fatigue model; passive joints have none.
 
     Build with :meth:`from_model` or :meth:`from_limits`. See the module docstring for the ordering
-    of halves and states.
+    of halves, controls and states.
     """
 
-    def __init__(self, halves: Sequence[ActuatorHalf]):
+    def __init__(self, halves: Sequence[ActuatorHalf], joints: Sequence[str] | None = None,
+                 coupling: str = "tl+mf<=1") -> None:
         """Args:
-        halves: ``(j0 plus, j0 minus, j1 plus, j1 minus, ...)``; each joint exactly once.
+        halves: ``(j0 plus, j0 minus, j1 plus, j1 minus, ...)``; each actuated joint exactly once,
+            in the order of ``joints``.
+        joints: every joint of the model in model order (length nv); those without halves are
+            passive. Default: the halves' joints (no passive joint).
+        coupling: one of :data:`COUPLINGS`.
         """
         halves = tuple(halves)
         if not halves or len(halves) % 2:
-            raise DimensionError(f"{len(halves)} actuator halves: expected a plus and a minus half per joint (an even number > 0)")
-        joints: list[str] = []
+            raise DimensionError(f"{len(halves)} actuator halves: expected a plus and a minus half per actuated joint "
+                                 "(an even number > 0: at least one joint must be actuated)")
+        actuated: list[str] = []
         for k in range(0, len(halves), 2):
             plus, minus = halves[k], halves[k + 1]
             if plus.joint != minus.joint or plus.sign != 1 or minus.sign != -1:
                 raise ParameterError(
                     f"actuator halves {k} and {k + 1} are {plus.name!r}, {minus.name!r}: expected the plus then the minus half of one joint"
                 )
-            if plus.joint in joints:
+            if plus.joint in actuated:
                 raise ParameterError(f"joint {plus.joint!r} has more than one pair of actuator halves")
-            joints.append(plus.joint)
+            actuated.append(plus.joint)
+        names = tuple(actuated) if joints is None else tuple(str(j) for j in joints)
+        unknown = [j for j in actuated if j not in names]
+        if unknown:
+            raise ParameterError(f"actuator halves drive joint(s) {unknown}, which are not among the joints {list(names)}")
+        if [j for j in names if j in actuated] != actuated:
+            raise ParameterError(f"actuator halves drive joints {actuated}: expected them in the order of the joints {list(names)}")
+        if coupling not in COUPLINGS:
+            raise ParameterError(f"coupling = {shown(coupling)}: expected one of {list(COUPLINGS)}")
+        if coupling == "active":
+            lacking = [h.name for h in halves if h.params.active_state not in h.params.state_names]
+            if lacking:
+                raise ParameterError(f"coupling 'active' needs an active state in every half's fatigue model; halves {lacking} have none")
         self._halves = halves
-        self._joint_names = tuple(joints)
+        self._joint_names = names
+        self._actuated = tuple(actuated)
+        self._coupling = coupling
 
     # -- construction --------------------------------------------------------------------------
 
@@ -167,47 +223,69 @@ class SignedTorqueActuators:
         tau_lower: Sequence[float] | np.ndarray,
         tau_upper: Sequence[float] | np.ndarray,
         params: ParamsSpec,
+        actuation: Actuation | None = None,
     ) -> SignedTorqueActuators:
         """Build from joint names and torque bounds.
 
         Args:
             joint_names: joint names in model order (length nv).
-            tau_lower: lower torque bounds (N m), shape (nv,), each < 0 (limit of the minus half).
-            tau_upper: upper torque bounds (N m), shape (nv,), each > 0 (limit of the plus half).
+            tau_lower: lower torque bounds (N m), shape (nv,), each < 0 (limit of the minus half),
+                or 0 together with ``tau_upper`` (a passive joint: zero effort limit).
+            tau_upper: upper torque bounds (N m), shape (nv,), each > 0 (limit of the plus half),
+                or 0 (passive).
             params: one :class:`FatigueParams` for every half, or a dict joint name -> FatigueParams
-                (both halves) or -> ``(plus, minus)`` pair; the dict must name every joint and no other.
+                (both halves) or -> ``(plus, minus)`` pair; the dict must name every actuated joint
+                and may name passive ones (ignored).
+            actuation: passive joints and coupling (default: none passive, ``tl+mf<=1``).
 
         Raises:
-            ParameterError: unknown or missing joint names in ``params``, or a bound of the wrong sign.
+            ParameterError: unknown or missing joint names in ``params`` or ``actuation.passive``,
+                a bound of the wrong sign, or no actuated joint.
             DimensionError: bounds whose length is not the number of joints.
         """
+        actuation = actuation or Actuation()
         names = tuple(str(n) for n in joint_names)
         nv = len(names)
         lo = np.asarray(tau_lower, dtype=float).reshape(-1)
         up = np.asarray(tau_upper, dtype=float).reshape(-1)
         if lo.shape != (nv,) or up.shape != (nv,):
             raise DimensionError(f"tau_lower {lo.shape}, tau_upper {up.shape}: expected ({nv},) for joints {list(names)}")
+        unknown = [j for j in actuation.passive if j not in names]
+        if unknown:
+            raise ParameterError(f"actuators.passive names joint {unknown[0]!r}, which is not in the model; its joints are {list(names)}")
+        passive = set(actuation.passive) | {names[j] for j in range(nv) if lo[j] == 0.0 and up[j] == 0.0}
         for j, name in enumerate(names):
+            if name in passive:
+                continue
             if not (lo[j] < 0.0):
-                raise ParameterError(f"tau_lower of joint {name!r} = {shown(lo[j])} N m: expected < 0 (limit of the extension half)")
+                raise ParameterError(f"tau_lower of joint {name!r} = {shown(lo[j])} N m: expected < 0 (limit of the extension half), "
+                                     "or 0 with tau_upper 0 (a passive joint)")
             if not (up[j] > 0.0):
-                raise ParameterError(f"tau_upper of joint {name!r} = {shown(up[j])} N m: expected > 0 (limit of the flexion half)")
-        per_joint = cls._resolve_params(names, params)
+                raise ParameterError(f"tau_upper of joint {name!r} = {shown(up[j])} N m: expected > 0 (limit of the flexion half), "
+                                     "or 0 with tau_lower 0 (a passive joint)")
+        actuated = tuple(n for n in names if n not in passive)
+        if not actuated:
+            raise ParameterError(f"every joint of {list(names)} is passive: expected at least one actuated joint")
+        per_joint = cls._resolve_params(actuated, params, tuple(passive))
         halves: list[ActuatorHalf] = []
         for j, name in enumerate(names):
+            if name in passive:
+                continue
             p_plus, p_minus = per_joint[name]
             halves.append(ActuatorHalf(name, 1, float(up[j]), p_plus))
             halves.append(ActuatorHalf(name, -1, float(-lo[j]), p_minus))
-        return cls(halves)
+        return cls(halves, names, actuation.coupling)
 
     @classmethod
-    def from_model(cls, model: _HasTorqueLimits, params: ParamsSpec) -> SignedTorqueActuators:
+    def from_model(cls, model: _HasTorqueLimits, params: ParamsSpec, actuation: Actuation | None = None) -> SignedTorqueActuators:
         """Build from a model with ``joint_names``, ``tau_lower`` and ``tau_upper`` (N m), e.g. a
-        :class:`fatigue_pin.robot.model.RobotModel`. See :meth:`from_limits` for ``params``."""
-        return cls.from_limits(model.joint_names, model.tau_lower, model.tau_upper, params)
+        :class:`fatigue_pin.robot.model.RobotModel`. See :meth:`from_limits` for ``params`` and
+        ``actuation``."""
+        return cls.from_limits(model.joint_names, model.tau_lower, model.tau_upper, params, actuation)
 
     @staticmethod
-    def _resolve_params(names: tuple[str, ...], params: ParamsSpec) -> dict[str, tuple[FatigueParams, FatigueParams]]:
+    def _resolve_params(names: tuple[str, ...], params: ParamsSpec,
+                        passive: tuple[str, ...] = ()) -> dict[str, tuple[FatigueParams, FatigueParams]]:
         if isinstance(params, FatigueModel):
             return {n: (params, params) for n in names}
         if not isinstance(params, Mapping):
@@ -215,12 +293,12 @@ class SignedTorqueActuators:
                 f"actuator params of type {type(params).__name__}: expected a FatigueParams or a dict joint name -> "
                 "FatigueParams or (plus, minus) pair"
             )
-        unknown = sorted(set(params) - set(names))
+        unknown = sorted(set(params) - set(names) - set(passive))
         if unknown:
-            raise ParameterError(f"fatigue params given for unknown joint(s) {unknown}; the model's joints are {list(names)}")
+            raise ParameterError(f"fatigue params given for unknown joint(s) {unknown}; the actuated joints are {list(names)}")
         missing = [n for n in names if n not in params]
         if missing:
-            raise ParameterError(f"no fatigue params for joint(s) {missing}; the dict must name every joint of {list(names)}")
+            raise ParameterError(f"no fatigue params for joint(s) {missing}; the dict must name every actuated joint of {list(names)}")
         out: dict[str, tuple[FatigueParams, FatigueParams]] = {}
         for n in names:
             v = params[n]
@@ -236,22 +314,47 @@ class SignedTorqueActuators:
 
     @property
     def halves(self) -> tuple[ActuatorHalf, ...]:
-        """The halves, ``(j0_plus, j0_minus, j1_plus, ...)``."""
+        """The halves, ``(j0_plus, j0_minus, j1_plus, ...)`` (actuated joints only)."""
         return self._halves
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """Joint names in model order (length nv)."""
+        """Every joint of the model in model order (length nv), passive ones included."""
         return self._joint_names
 
     @property
+    def actuated_joints(self) -> tuple[str, ...]:
+        """The joints with halves, in model order (length na)."""
+        return self._actuated
+
+    @property
+    def passive_joints(self) -> tuple[str, ...]:
+        """The joints without an actuator, in model order."""
+        return tuple(j for j in self._joint_names if j not in self._actuated)
+
+    @property
+    def coupling_kind(self) -> str:
+        """How torque and fatigue are coupled, one of :data:`COUPLINGS`."""
+        return self._coupling
+
+    @property
     def nv(self) -> int:
-        """Number of joints."""
+        """Number of joints (passive ones included)."""
         return len(self._joint_names)
 
     @property
+    def n_actuated(self) -> int:
+        """Number of actuated joints (na)."""
+        return len(self._actuated)
+
+    @property
+    def nu(self) -> int:
+        """Number of controls (``2 * na``: the plus halves' torques, then the minus halves')."""
+        return 2 * self.n_actuated
+
+    @property
     def n_halves(self) -> int:
-        """Number of halves (``2 * nv``)."""
+        """Number of halves (``2 * na``)."""
         return len(self._halves)
 
     @property
@@ -305,6 +408,10 @@ class SignedTorqueActuators:
         """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
         return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
 
+    def active_rows(self) -> list[int]:
+        """Row of each half's active fraction (its model's ``active_state``), length n_halves."""
+        return [off + h.params.state_index(h.params.active_state) for h, off in zip(self._halves, self.state_offsets())]
+
     def fatigue_groups(self) -> tuple[FatigueGroup, ...]:
         """The halves grouped by fatigue equations (the same model kind and :meth:`structure_key
         <fatigue_pin.fatigue.interface.FatigueModel.structure_key>`; parameter values may differ),
@@ -328,23 +435,45 @@ class SignedTorqueActuators:
         return tuple(groups)
 
     def structure_key(self) -> str:
-        """Text identifying what compiled code depends on: joints, limits and fatigue equations."""
-        return ";".join(f"{h.name}:{h.tau_limit!r}:{h.params.structure_key()}" for h in self._halves)
+        """Text identifying what compiled code depends on: joints, limits, fatigue equations and,
+        when not the default, the passive joints and the coupling."""
+        key = ";".join(f"{h.name}:{h.tau_limit!r}:{h.params.structure_key()}" for h in self._halves)
+        if self.passive_joints or self._coupling != "tl+mf<=1":  # the default's key is as before (caches)
+            key += f";passive={list(self.passive_joints)};coupling={self._coupling}"
+        return key
 
     @property
     def tau_plus_limits(self) -> np.ndarray:
-        """Upper bounds of ``tau_plus`` (N m), shape (nv,)."""
+        """Upper bounds of ``tau_plus`` (N m), shape (na,): the plus halves' limits."""
         return np.array([h.tau_limit for h in self._halves[0::2]])
 
     @property
     def tau_minus_limits(self) -> np.ndarray:
-        """Lower bounds of ``tau_minus`` (N m, negative), shape (nv,)."""
+        """Lower bounds of ``tau_minus`` (N m, negative), shape (na,): the minus halves' limits."""
         return np.array([-h.tau_limit for h in self._halves[1::2]])
 
     @property
     def signed_limits(self) -> np.ndarray:
         """Torque of each half at TL = 1 (N m), shape (n_halves,): ``+tau_upper``, ``tau_lower``, ..."""
         return np.array([h.signed_limit for h in self._halves])
+
+    def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of the controls (N m), each shape (nu,): ``[0, tau_upper]`` for the plus halves,
+        ``[tau_lower, 0]`` for the minus halves."""
+        na = self.n_actuated
+        return (np.concatenate([np.zeros(na), self.tau_minus_limits]),
+                np.concatenate([self.tau_plus_limits, np.zeros(na)]))
+
+    def control_scales(self, magnitude: np.ndarray) -> np.ndarray:
+        """Scales of the controls, shape (nu,), from a per-joint magnitude (nv,) (e.g. the larger
+        torque limit of each joint): each half takes its joint's."""
+        m = np.asarray(magnitude, dtype=float).reshape(-1)[self.actuated_index]
+        return np.concatenate([m, m])
+
+    @property
+    def actuated_index(self) -> list[int]:
+        """Index in the model's joints of each actuated joint, length na."""
+        return [self._joint_names.index(j) for j in self._actuated]
 
     def params_of(self, name: str) -> FatigueParams:
         """Fatigue parameters of the half ``name`` (e.g. ``"elbow_minus"``)."""
@@ -370,30 +499,101 @@ class SignedTorqueActuators:
             except ParameterError as exc:
                 raise ParameterError(f"actuator half {h.name!r}: {exc}") from None
 
-    # -- expressions ---------------------------------------------------------------------------
-
-    def joint_torque(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
-        """Joint torque ``tau_plus + tau_minus`` (N m), shape (nv,)."""
-        return _column(tau_plus, self.nv, "tau_plus") + _column(tau_minus, self.nv, "tau_minus")
-
-    def target_loads(self, tau_plus: Expr, tau_minus: Expr) -> Expr:
-        """Target loads ``TL`` (dimensionless), shape (n_halves,): ``tau_plus[j] / tau_upper[j]`` and
-        ``tau_minus[j] / tau_lower[j]`` interleaved in half order."""
-        u = ca.vertcat(_column(tau_plus, self.nv, "tau_plus"), _column(tau_minus, self.nv, "tau_minus"))
-        return self.control_target_loads(u)
+    # -- controls, halves and joint torques ------------------------------------------------------
 
     def control_rows(self) -> list[int]:
-        """Row of each half's torque in the controls ``u = (tau_plus, tau_minus)`` (shape (2 nv,)),
-        length n_halves: ``j`` for ``j_plus``, ``nv + j`` for ``j_minus``."""
-        return [k // 2 + (0 if h.sign > 0 else self.nv) for k, h in enumerate(self._halves)]
+        """Row of each half's torque in the controls ``u = (tau_plus, tau_minus)`` (shape (nu,)),
+        length n_halves: ``a`` for the plus half of the a-th actuated joint, ``na + a`` for its
+        minus half."""
+        na = self.n_actuated
+        return [k // 2 + (0 if h.sign > 0 else na) for k, h in enumerate(self._halves)]
 
-    def control_target_loads(self, u: ca.SX | ca.MX | ca.DM) -> ca.SX | ca.MX | ca.DM:
-        """Target loads of every half, shape (n_halves, K), from controls ``u = (tau_plus;
-        tau_minus)`` of shape (2 nv, K) (N m): a row selection divided by the signed limits, so
+    def torque_matrix(self) -> np.ndarray:
+        """``B`` (nv, nu) with joint torque = ``B u``: a 1 where a control acts on its joint, rows of
+        passive joints zero."""
+        B = np.zeros((self.nv, self.nu))
+        for a, j in enumerate(self.actuated_index):
+            B[j, a] = B[j, self.n_actuated + a] = 1.0
+        return B
+
+    def half_torque_matrix(self) -> np.ndarray:
+        """``H`` (nv, n_halves) with joint torque = ``H tau_halves`` (halves in half order)."""
+        H = np.zeros((self.nv, self.n_halves))
+        for k, h in enumerate(self._halves):
+            H[self._joint_names.index(h.joint), k] = 1.0
+        return H
+
+    def joint_torque(self, u: Expr, m: Expr | None = None) -> Expr:
+        """Joint torques (N m or N), 0 on passive joints, from controls ``u``.
+
+        CasADi ``u`` of shape (nu, K) gives (nv, K); a numpy ``u`` of shape (..., nu) (a row per
+        interval) gives (..., nv). Under the ``active`` coupling the torque is the halves'
+        ``m_active * limit`` and ``m`` (the fatigue states: (n_states, K), or (..., n_states) for
+        numpy) is required; otherwise it is the sum of the halves' controls and ``m`` is ignored.
+        """
+        if self._coupling == "active":
+            if m is None:
+                raise ParameterError("coupling 'active': the joint torque is m_active * limit; expected the fatigue states m")
+            return self._map_halves(self.half_torques_from_states(m))
+        if isinstance(u, (ca.SX, ca.MX, ca.DM)):
+            if u.size1() != self.nu:
+                raise DimensionError(f"controls u of shape {u.shape}: expected {self.nu} rows (tau_plus, tau_minus)")
+            if not self.passive_joints:  # the expression of the NLPs before passive joints (their caches)
+                return u[: self.n_actuated, :] + u[self.n_actuated :, :]
+            return ca.mtimes(ca.DM(self.torque_matrix()), u)
+        a = np.asarray(u, dtype=float)
+        if a.shape[-1] != self.nu:
+            raise DimensionError(f"controls u of shape {a.shape}: expected {self.nu} columns (tau_plus, tau_minus)")
+        return a @ self.torque_matrix().T
+
+    def _map_halves(self, tau_halves: Expr) -> Expr:
+        """Joint torques from half torques: (n_halves, K) -> (nv, K), or numpy (..., n_halves) -> (..., nv)."""
+        if isinstance(tau_halves, (ca.SX, ca.MX, ca.DM)):
+            return ca.mtimes(ca.DM(self.half_torque_matrix()), tau_halves)
+        return np.asarray(tau_halves, dtype=float) @ self.half_torque_matrix().T
+
+    def half_torques_from_states(self, m: Expr) -> Expr:
+        """``m_active * signed limit`` of every half (N m): CasADi (n_states, K) -> (n_halves, K),
+        numpy (..., n_states) -> (..., n_halves)."""
+        rows = self.active_rows()
+        if isinstance(m, (ca.SX, ca.MX, ca.DM)):
+            return m[rows, :] * ca.repmat(ca.DM(self.signed_limits), 1, m.size2())
+        return np.asarray(m, dtype=float)[..., rows] * self.signed_limits
+
+    def half_torques(self, u: np.ndarray) -> np.ndarray:
+        """The controls (..., nu) as torques of the halves (..., n_halves), in half order."""
+        return np.asarray(u, dtype=float)[..., self.control_rows()]
+
+    def per_joint(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The controls (..., nu) as ``(tau_plus, tau_minus)``, each (..., nv) with a column per
+        joint of the model (0 on passive joints), N m."""
+        u = np.asarray(u, dtype=float)
+        na, idx = self.n_actuated, self.actuated_index
+        plus, minus = np.zeros(u.shape[:-1] + (self.nv,)), np.zeros(u.shape[:-1] + (self.nv,))
+        plus[..., idx], minus[..., idx] = u[..., :na], u[..., na:]
+        return plus, minus
+
+    def controls(self, tau_halves: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`half_torques`: controls (..., nu) from half torques (..., n_halves)."""
+        t = np.asarray(tau_halves, dtype=float)
+        u = np.zeros(t.shape[:-1] + (self.nu,))
+        u[..., self.control_rows()] = t
+        return u
+
+    # -- expressions ---------------------------------------------------------------------------
+
+    def target_loads(self, u: Expr) -> Expr:
+        """Target loads ``TL`` (dimensionless) of every half, shape (n_halves, K), from controls
+        ``u = (tau_plus; tau_minus)`` of shape (nu, K) (N m): ``tau_plus / tau_upper`` and
+        ``tau_minus / tau_lower`` in half order; a row selection divided by the signed limits, so
         affine in ``u`` (the one place that divides a torque by its limit)."""
-        if u.size1() != 2 * self.nv:
-            raise DimensionError(f"controls u of shape {u.shape}: expected {2 * self.nv} rows (tau_plus, tau_minus)")
+        u = u if isinstance(u, (ca.SX, ca.MX, ca.DM)) else _column(u, self.nu, "controls u")
+        if u.size1() != self.nu:
+            raise DimensionError(f"controls u of shape {u.shape}: expected {self.nu} rows (tau_plus, tau_minus)")
         return u[self.control_rows(), :] / ca.repmat(ca.DM(self.signed_limits), 1, u.size2())
+
+    #: the name the interval functions use (the same method)
+    control_target_loads = target_loads
 
     def state(self, m: Expr, state: str) -> Expr:
         """State ``state`` (e.g. ``"mf"``) of every half, shape (n_halves,), from ``m`` of shape
@@ -414,18 +614,17 @@ class SignedTorqueActuators:
         m = _column(m, self.n_states, "fatigue states m")
         return ca.vertcat(*[m[r] for r in self.fatigued_rows()])
 
-    def fatigue_rates(self, m: Expr, tau_plus: Expr, tau_minus: Expr, p: Expr | None = None) -> Expr:
+    def fatigue_rates(self, m: Expr, u: Expr, p: Expr | None = None) -> Expr:
         """``dm/dt`` (1/s), shape (n_states,), same layout as ``m``.
 
         Args:
             m: fatigue states, shape (n_states,).
-            tau_plus: flexion half torques (N m), shape (nv,).
-            tau_minus: extension half torques (N m), shape (nv,).
+            u: controls ``(tau_plus, tau_minus)`` (N m), shape (nu,).
             p: optional parameter vector, shape (n_params,), e.g. a symbol; default
                 :meth:`param_vector`.
         """
         m = _column(m, self.n_states, "fatigue states m")
-        TL = self.target_loads(tau_plus, tau_minus)
+        TL = self.target_loads(u)
         p = ca.DM(self.param_vector()) if p is None else _column(p, self.n_params, "fatigue parameter vector p")
         out = []
         for i, (h, so, po) in enumerate(zip(self._halves, self.state_offsets(), self.param_offsets())):
@@ -433,10 +632,15 @@ class SignedTorqueActuators:
             out.append(h.params.rhs()(m[so : so + ns], TL[i], p[po : po + npar]))
         return ca.vertcat(*out)
 
-    def coupling(self, m: Expr, tau_plus: Expr, tau_minus: Expr) -> Expr:
+    def coupling(self, m: Expr, u: Expr) -> Expr:
         """Torque/fatigue coupling ``TL + fatigued fraction`` per half (dimensionless), shape
-        (n_halves,); OCPs bound it to [0, 1]."""
-        return self.target_loads(tau_plus, tau_minus) + self.fatigued(m)
+        (n_halves,); under the ``tl+mf<=1`` coupling the OCPs bound it to [0, 1]."""
+        return self.target_loads(u) + self.fatigued(m)
+
+    @property
+    def coupling_rows(self) -> bool:
+        """Whether the OCPs hold ``0 <= TL + m_fatigued <= 1`` (the ``tl+mf<=1`` coupling)."""
+        return self._coupling == "tl+mf<=1"
 
     def available_torque(self, mf: Expr) -> Expr:
         """Signed torque each half can still produce, ``(1 - mf) * limit`` (N m), shape (n_halves,):
@@ -450,4 +654,6 @@ class SignedTorqueActuators:
 
     def __repr__(self) -> str:
         parts = ", ".join(f"{h.name}: {h.tau_limit:g} N m" for h in self._halves)
-        return f"SignedTorqueActuators({parts})"
+        extra = "".join([f", passive {list(self.passive_joints)}" if self.passive_joints else "",
+                         f", coupling {self._coupling!r}" if self._coupling != "tl+mf<=1" else ""])
+        return f"SignedTorqueActuators({parts}{extra})"

@@ -39,7 +39,8 @@ class IntervalVariables:
     """The symbols of one shooting interval, addressed by name, for cost integrands.
 
     Attributes:
-        x: state (nx,) at the start of the interval; u: control (nu,) = (tau_plus, tau_minus);
+        x: state (nx,) at the start of the interval; u: control (nu,) = (tau_plus, tau_minus) of
+            the actuated joints;
         u_prev: the previous interval's control (nu,).
         layout: the :class:`~fatigue_pin.ocp.transcription.StateLayout`; model: the RobotModel;
         actuators: the :class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators`.
@@ -74,18 +75,19 @@ class IntervalVariables:
 
     @property
     def tau_plus(self) -> ca.SX:
-        """Flexion-half torques (N m), (nv,)."""
-        return self.u[: self.layout.nv]
+        """Flexion-half torques of the actuated joints (N m), (na,)."""
+        return self.u[: self.actuators.n_actuated]
 
     @property
     def tau_minus(self) -> ca.SX:
-        """Extension-half torques (N m), (nv,)."""
-        return self.u[self.layout.nv :]
+        """Extension-half torques of the actuated joints (N m), (na,)."""
+        return self.u[self.actuators.n_actuated :]
 
     @property
     def tau(self) -> ca.SX:
-        """Joint torques tau_plus + tau_minus (N m), (nv,)."""
-        return self.tau_plus + self.tau_minus
+        """Joint torques (N m), (nv,), as the actuators deliver them
+        (:meth:`~fatigue_pin.ocp.actuators.SignedTorqueActuators.joint_torque`: 0 on passive joints)."""
+        return self.actuators.joint_torque(self.u, self.x[self.layout.m])
 
     def fatigue(self, state: str) -> ca.SX:
         """Fatigue state ``state`` (e.g. ``"mf"``) of every half, (n_halves,)."""

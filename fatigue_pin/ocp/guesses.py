@@ -56,7 +56,8 @@ def _inverse_dynamics_guess(ocp: Ocp, x_init: np.ndarray, q: np.ndarray, qdot: n
     fatigue states integrated from them."""
     N = ocp.n_intervals
     tau = np.array([np.asarray(ocp.model.rnea(q[k], qdot[k], qddot[k])).reshape(-1) for k in range(N)])
-    tau = np.clip(tau, ocp.actuators.tau_minus_limits, ocp.actuators.tau_plus_limits)
+    A = ocp.actuators
+    tau = np.clip(tau[:, A.actuated_index], A.tau_minus_limits, A.tau_plus_limits)  # passive joints: no actuator
     u = np.hstack([np.maximum(tau, 0.0), np.minimum(tau, 0.0)])
     return rollout_fatigue(ocp, x_init, q, qdot, u), u
 

@@ -57,6 +57,7 @@ class IntervalFunctions:
         fatigue_steps: per group, ``F_fatigue_<label>(m_h, TL_h, p_h) -> m_h_next``: the RK4 of one
             half over one interval (the library compiles these, not F_fatigue).
         coupling: ``coupling(x, u) -> TL + m_fatigued`` of every half.
+        F_rb_active: ``F_rb_active(y, m, u, p) -> y_next`` under the ``active`` coupling, else None.
         terms: cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_terms,)``.
     """
 
@@ -97,7 +98,7 @@ class IntervalFunctions:
         m = ca.SX.sym("m", actuators.n_states)
         u = ca.SX.sym("u", nu)
         p = ca.SX.sym("p_fatigue", actuators.n_params)
-        self.f_fatigue = ca.Function("f_fatigue", [m, u, p], [actuators.fatigue_rates(m, u[:nv], u[nv:], p)], ["m", "u", "p"], ["mdot"])
+        self.f_fatigue = ca.Function("f_fatigue", [m, u, p], [actuators.fatigue_rates(m, u, p)], ["m", "u", "p"], ["mdot"])
         # per group of halves with the same equations, the RK4 of one half (SX, or with
         # fatigue_calls MX calls of the model's SX right-hand side: less derivative code)
         self.fatigue_groups = actuators.fatigue_groups()
@@ -122,7 +123,12 @@ class IntervalFunctions:
 
         x = ca.SX.sym("x", nx)
         u_prev = ca.SX.sym("u_prev", nu)
-        self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(x[layout.m], u[:nv], u[nv:])], ["x", "u"], ["TL_plus_mf"])
+        self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(x[layout.m], u)], ["x", "u"], ["TL_plus_mf"])
+        #: under the ``active`` coupling the torque follows the active fraction of the halves
+        #: through the interval, so the rigid body is integrated with the fatigue states:
+        #: ``F_rb_active(y, m, u, p) -> y_next``, the y part of RK4 of (y, m) (its m part is
+        #: :attr:`F_fatigue`'s, m not depending on y); None under the other couplings
+        self.F_rb_active = self._active_rigid_body(h, substeps) if actuators.coupling_kind == "active" else None
         v = IntervalVariables(x, u, u_prev, layout, model, actuators)
         integrands = [term.expression(v) for term in problem.costs]
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
@@ -170,7 +176,7 @@ class IntervalFunctions:
         around the compiled steps once :meth:`use` has swapped them, so a library holds the
         fatigue step once, for one half per group)."""
         A = self.actuators
-        m, u, p = ca.MX.sym("m", A.n_states), ca.MX.sym("u", 2 * A.nv), ca.MX.sym("p_fatigue", A.n_params)
+        m, u, p = ca.MX.sym("m", A.n_states), ca.MX.sym("u", A.nu), ca.MX.sym("p_fatigue", A.n_params)
         return ca.Function("F_fatigue", [m, u, p], [self.fatigue_by_groups(m, u, p)], ["m", "u", "p"], ["m_next"])
 
     def fatigue_by_groups(self, m: ca.MX, u: ca.MX, p: ca.MX, call: Callable[..., ca.MX] | None = None) -> ca.MX:
@@ -202,9 +208,37 @@ class IntervalFunctions:
             return stacked
         return stacked[np.argsort(rows).tolist(), :]  # back to the halves' order
 
+    def _active_rigid_body(self, h: float, substeps: int) -> ca.Function:
+        """``F_rb_active(y, m, u, p) -> y_next``: RK4 of ``(y, m)`` with the joint torque of the
+        halves' active fractions (``active`` coupling), its y part. MX calls of the SX
+        right-hand sides, as :attr:`F_rb`."""
+        A, L = self.actuators, self.layout
+        ny = L.nq + L.nv
+        y, m = ca.MX.sym("y", ny), ca.MX.sym("m", A.n_states)
+        u, p = ca.MX.sym("u", A.nu), ca.MX.sym("p_fatigue", A.n_params)
+        z = ca.SX.sym("z", ny + A.n_states)
+        us, ps = ca.SX.sym("u", A.nu), ca.SX.sym("p", A.n_params)
+        tau = A.joint_torque(us, z[ny:])
+        f = ca.Function("f_active", [z, us, ps], [ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps))])
+        z_next = rk4(f, ca.vertcat(y, m), (u, p), h, substeps)
+        return ca.Function("F_rb_active", [y, m, u, p], [z_next[:ny]], ["y", "m", "u", "p"], ["y_next"])
+
+    def rigid_body_step(self, y: ca.MX, m: ca.MX, u: ca.MX, p: ca.MX, T: ca.MX | None = None,
+                        call: Callable[..., ca.MX] | None = None) -> ca.MX:
+        """(q, qdot) after every interval, (nq + nv, K), from y (nq + nv, K), fatigue states m
+        (n_states, K), controls u (nu, K), fatigue parameters p (n_params, 1) and, if given, the
+        joint torques T (nv, K) (else the actuators' :meth:`joint_torque` of u). ``call(f, n,
+        *args)`` maps ``f`` over ``n`` columns (default ``f.map(n)(*args)``)."""
+        call = call or (lambda f, n, *args: f.map(n)(*args))
+        K = y.size2()
+        if self.F_rb_active is not None:
+            return call(self.F_rb_active, K, y, m, u, ca.repmat(p, 1, K) if p.size2() == 1 else p)
+        return call(self.F_rb, K, y, self.actuators.joint_torque(u) if T is None else T)
+
     def library_functions(self) -> list[ca.Function]:
         """The functions a compiled library holds (:mod:`fatigue_pin.ocp.compiled`)."""
-        return [self.F_rb, *self.fatigue_steps.values(), self.coupling, self.terms]
+        rb = self.F_rb if self.F_rb_active is None else self.F_rb_active
+        return [rb, *self.fatigue_steps.values(), self.coupling, self.terms]
 
     def build_blocks(self, diffs: Mapping[str, tuple[int, ...]], hessian: str = "exact", jacobian: str = "automatic") -> None:
         """Build the derivative blocks (:func:`fatigue_pin.ocp.blocks.block_functions`) of the
@@ -250,7 +284,10 @@ class IntervalFunctions:
     def step(self, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Numeric state after one interval, shape (nx,)."""
         L = self.layout
-        nv = L.nv
-        y = np.asarray(self.F_rb(x[: L.nq + nv], u[:nv] + u[nv:])).reshape(-1)
+        ny = L.nq + L.nv
+        if self.F_rb_active is not None:
+            y = np.asarray(self.F_rb_active(x[:ny], x[L.m], u, p)).reshape(-1)
+        else:
+            y = np.asarray(self.F_rb(x[:ny], self.actuators.joint_torque(np.asarray(u, dtype=float)))).reshape(-1)
         m = np.asarray(self.F_fatigue(x[L.m], u, p)).reshape(-1)
         return np.concatenate([y, m])

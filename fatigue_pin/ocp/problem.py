@@ -6,7 +6,9 @@ State of the OCPs (:class:`StateLayout`)::
     x = [q (nq), qdot (nv), states of half 0, states of half 1, ...]
 
 where each half contributes the states its fatigue model declares (Xia's 3CC: ma, mr, mf), and
-the control is ``u = [tau_plus (nv), tau_minus (nv)]``. Every quantity is addressed by name.
+the control is ``u = [tau_plus (na), tau_minus (na)]`` of the na actuated joints (passive joints
+have no control and no fatigue state; the joint torque is the actuators' to say,
+:meth:`SignedTorqueActuators.joint_torque`). Every quantity is addressed by name.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from fatigue_pin.ocp.actuators import ParamsSpec, SignedTorqueActuators
+from fatigue_pin.ocp.actuators import Actuation, ParamsSpec, SignedTorqueActuators
 from fatigue_pin.ocp.costs import CostTerm, check_costs
 from fatigue_pin.core.errors import ParameterError, TaskError
 from fatigue_pin.robot.model import RobotModel
@@ -70,7 +72,8 @@ class StateLayout:
 
     @property
     def nu(self) -> int:
-        return 2 * self.nv
+        """Number of controls: two halves per actuated joint (:attr:`SignedTorqueActuators.nu`)."""
+        return self.actuators.nu
 
     @property
     def q(self) -> slice:
@@ -141,7 +144,8 @@ class Problem:
 
     Attributes:
         model: the rigid-body model.
-        actuators: one plus and one minus half per joint of ``model``.
+        actuators: one plus and one minus half per actuated joint of ``model`` (its ``joint_names``
+            are the model's).
         task: the cyclic task.
         costs: the cost terms (unique names).
         x_init: initial state (nx,); ``None``: the task's q_init, zero velocity, rested fatigue.
@@ -188,11 +192,11 @@ class Problem:
 
     @classmethod
     def build(cls, model: RobotModel, fatigue: ParamsSpec, task: Task, costs: Sequence[CostTerm],
-              x_init: np.ndarray | None = None) -> Problem:
+              x_init: np.ndarray | None = None, actuation: Actuation | None = None) -> Problem:
         """A problem whose actuators come from ``model``'s torque limits with fatigue models
         ``fatigue`` (one for every half, or per joint: see
-        :meth:`SignedTorqueActuators.from_model`)."""
-        return cls(model, SignedTorqueActuators.from_model(model, fatigue), task, tuple(costs), x_init)
+        :meth:`SignedTorqueActuators.from_model`), passive joints and coupling ``actuation``."""
+        return cls(model, SignedTorqueActuators.from_model(model, fatigue, actuation), task, tuple(costs), x_init)
 
     @property
     def layout(self) -> StateLayout:

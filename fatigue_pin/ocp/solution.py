@@ -56,7 +56,7 @@ class OcpSolution:
 
     Attributes:
         t: node times (s), shape (N+1,).
-        x: states, shape (N+1, nx); u: controls, shape (N, nu).
+        x: states, shape (N+1, nx); u: controls, shape (N, nu) (two halves per actuated joint).
         layout: the state layout; actuator_names: names of the halves.
         status, success, iterations, wall_time_s: from IPOPT (a failure keeps the last iterate).
         nlp: the raw NLP result (flat vectors and multipliers, for warm starts).
@@ -100,8 +100,17 @@ class OcpSolution:
 
     @property
     def tau_plus(self) -> np.ndarray:
-        return self.u[:, : self.layout.nv]
+        """Flexion-half torques (N m), (N, nv), 0 on passive joints."""
+        return self.layout.actuators.per_joint(self.u)[0]
 
     @property
     def tau_minus(self) -> np.ndarray:
-        return self.u[:, self.layout.nv :]
+        """Extension-half torques (N m), (N, nv), 0 on passive joints."""
+        return self.layout.actuators.per_joint(self.u)[1]
+
+    @property
+    def tau(self) -> np.ndarray:
+        """Joint torques as the actuators deliver them (N m), (N, nv): the halves' sum, 0 on
+        passive joints (under the ``active`` coupling, from the active fractions at the interval
+        starts)."""
+        return np.asarray(self.layout.actuators.joint_torque(self.u, self.x[:-1, self.layout.m]))

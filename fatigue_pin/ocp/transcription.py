@@ -5,8 +5,13 @@ intervals_per_cycle intervals of length dt), :class:`Ocp` builds::
 
     x_{k+1} = F(x_k, u_k)                         gaps, k = 0..N-1 (rigid body and fatigue
                                                   integrated by separate RK4 functions)
-    T_k = tau_plus_k + tau_minus_k                auxiliary joint torque (halves the Hessian)
-    0 <= TL_h(u_k) + m_fatigued,h(x_k) <= 1       every half h, every node (u_N := u_{N-1})
+    T_k = B u_k                                   auxiliary joint torque (halves the Hessian):
+                                                  tau_plus + tau_minus, 0 on passive joints
+    0 <= TL_h(u_k) + m_fatigued,h(x_k) <= 1       every half h, every node (u_N := u_{N-1}),
+                                                  under the `tl+mf<=1` coupling (the default;
+                                                  `observed`: no such row; `active`: no row,
+                                                  and the rigid body takes sum_h ma_h limit_h,
+                                                  integrated with the fatigue states)
     X_lb <= x_k <= X_ub                            model bounds, [0, 1] on fatigue states, the
                                                   initial state at node 0, joint targets at
                                                   their nodes, joint ranges, and (sliding
@@ -174,6 +179,13 @@ class Ocp:
         self.t = np.linspace(0.0, N * self.task.dt, N + 1)
 
     @property
+    def torque_is_variable(self) -> bool:
+        """Whether the joint torque is a decision variable (:attr:`Transcription.torque_variable`;
+        never under the ``active`` coupling, whose torque is a function of the states within the
+        interval, not a value per interval)."""
+        return self.transcription.torque_variable and self.actuators.coupling_kind != "active"
+
+    @property
     def map_mode(self) -> str:
         """How the interval functions (and their derivative blocks) are mapped. In library mode
         with ``parallel="auto"``: ``thread`` (on an idle 2-core machine 10-17 % less time per
@@ -261,13 +273,13 @@ class Ocp:
         Us = opti.variable(nu, N)
         X = ca.diag(ca.DM(self.x_scale)) @ Xs
         U = ca.diag(ca.DM(self.u_scale)) @ Us
-        if self.transcription.torque_variable:
+        if self.torque_is_variable:
             # joint torque tau_plus + tau_minus as its own variable: the rigid-body dynamics then
-            # depend on nv torques instead of 2 nv halves, which halves the exact Hessian's cost
+            # depend on nv torques instead of 2 na halves, which halves the exact Hessian's cost
             Ts = opti.variable(layout.nv, N)
             T = ca.diag(ca.DM(self.t_scale)) @ Ts
-        else:
-            T = U[: layout.nv, :] + U[layout.nv :, :]
+        else:  # the torque the actuators deliver (under the `active` coupling: from the states)
+            T = self.actuators.joint_torque(U, X[layout.m, :N])
         self.X, self.U, self.T = X, U, T
         params = ParameterLayout(opti)
         P_fatigue = params.add("fatigue", self.actuators.n_params)
@@ -286,12 +298,14 @@ class Ocp:
             self._mapped.append(MappedCall(f, tuple(args), out, n))
             return out
 
-        if self.transcription.torque_variable:
-            opti.subject_to(T == U[:nv, :] + U[nv:, :])
-        opti.subject_to(X[:ny, 1:] == mapped(fn.F_rb, N, X[:ny, :N], T))
+        if self.torque_is_variable:
+            opti.subject_to(T == self.actuators.joint_torque(U))
+        opti.subject_to(X[:ny, 1:] == fn.rigid_body_step(X[:ny, :N], X[ny:, :N], U, P_fatigue,
+                                                         T if self.torque_is_variable else None, call=mapped))
         opti.subject_to(X[ny:, 1:] == self._fatigue_step(X[ny:, :N], U, P_fatigue, mapped))
-        coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
-        opti.subject_to(opti.bounded(0, coupling, 1))
+        if self.actuators.coupling_rows:  # the `tl+mf<=1` coupling (docs/model.md)
+            coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
+            opti.subject_to(opti.bounded(0, coupling, 1))
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
         #: rows of g that stay constraints although they bound one variable (``target_rows``)
@@ -380,8 +394,8 @@ class Ocp:
 
             x[L.v] = magnitude(self.model.v_lower, self.model.v_upper)
             tmax = magnitude(self.model.tau_lower, self.model.tau_upper)
-            u = np.concatenate([tmax, tmax])
-            t = tmax
+            u = self.actuators.control_scales(tmax)  # each half by its joint's limit
+            t = tmax  # 1 on a passive joint (its torque is 0)
         return x, u, t
 
     def initial_state(self) -> np.ndarray:
@@ -436,8 +450,7 @@ class Ocp:
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of the actuator halves, each of shape (nu, N)."""
         N = self.n_intervals
-        lo = np.concatenate([np.zeros(self.layout.nv), self.actuators.tau_minus_limits])
-        hi = np.concatenate([self.actuators.tau_plus_limits, np.zeros(self.layout.nv)])
+        lo, hi = self.actuators.control_bounds()
         return np.tile(lo[:, None], (1, N)), np.tile(hi[:, None], (1, N))
 
     def parameter_vector(
@@ -516,11 +529,10 @@ class Ocp:
     def flatten(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Decision vector in the NLP's order (X, U[, T]) from states (N+1, nx) and controls (N, nu)."""
         x, u = np.asarray(x, dtype=float), np.asarray(u, dtype=float)
-        nv = self.layout.nv
         xs, us = x / self.x_scale, u / self.u_scale
         parts = [xs.T.reshape(-1, order="F"), us.T.reshape(-1, order="F")]
-        if self.transcription.torque_variable:
-            parts.append(((u[:, :nv] + u[:, nv:]) / self.t_scale).T.reshape(-1, order="F"))
+        if self.torque_is_variable:
+            parts.append((self.actuators.joint_torque(u) / self.t_scale).T.reshape(-1, order="F"))
         return np.concatenate(parts)
 
     def unflatten(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

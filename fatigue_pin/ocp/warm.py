@@ -32,7 +32,7 @@ def variable_nodes(ocp) -> tuple[np.ndarray, np.ndarray]:
     L, N = ocp.layout, ocp.n_intervals
     nodes = [np.repeat(np.arange(N + 1), L.nx), np.repeat(np.arange(N), L.nu)]
     slots = [np.tile(np.arange(L.nx), N + 1), L.nx + np.tile(np.arange(L.nu), N)]
-    if ocp.transcription.torque_variable:
+    if ocp.torque_is_variable:
         nodes.append(np.repeat(np.arange(N), L.nv))
         slots.append(L.nx + L.nu + np.tile(np.arange(L.nv), N))
     return np.concatenate(nodes), np.concatenate(slots)
