@@ -162,9 +162,7 @@ class MheEstimator(OpenLoopEstimator):
         self.index = np.array(index, dtype=int)
         self.nominal = actuators.param_vector()[self.index]
         self._fatigued = np.array(actuators.fatigued_rows())
-        limits = actuators.signed_limits
-        self._limits_u = np.concatenate([limits[0::2], limits[1::2]])
-        self._half_of_u = np.concatenate([np.arange(0, len(limits), 2), np.arange(1, len(limits), 2)])
+        self._actuators = actuators
         self._solvers: dict[int, ca.Function] = {}
         self._traj: dict[int, ca.Function] = {}
         #: wall time of the last correction (s)
@@ -172,9 +170,8 @@ class MheEstimator(OpenLoopEstimator):
 
     def _target_loads(self, u: np.ndarray) -> np.ndarray:
         """Target loads (n_halves, L) from controls (L, nu)."""
-        TL = np.zeros((len(self._limits_u), u.shape[0]))
-        TL[self._half_of_u] = (u / self._limits_u).T
-        return TL
+        A = self._actuators
+        return (A.half_torques(np.asarray(u, dtype=float).reshape(-1, A.nu)) / A.signed_limits).T
 
     def _solver(self, L: int) -> ca.Function:
         """The estimation NLP over L intervals (built once per L)."""

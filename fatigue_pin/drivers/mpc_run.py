@@ -125,7 +125,7 @@ def from_run(loop: ClosedLoop, run: RunResult) -> LoopState:
     if missing:
         raise ResultFileError(f"run {run.name!r} has no closed-loop arrays {missing}; it is not a closed-loop (mpc) run")
     x = np.vstack([L.assemble(run.q, run.qdot, run.fatigue), e["tail_x"]])
-    u = np.vstack([np.hstack([run.tau_plus, run.tau_minus]), e["tail_u"]])
+    u = np.vstack([L.actuators.controls(run.half_torques()), e["tail_u"]])
     history = History(list(e["estimate"]), list(e["u_command"]), list(u),
                       {int(k): v for k, v in zip(e["probe_nodes"], e["probes"])})
     plan = None
@@ -145,7 +145,7 @@ def estimate_run(loop: ClosedLoop, run: RunResult) -> RunResult:
     delivered torques (its whole cycles)."""
     e, L = run.extras, loop.problem.layout
     x = np.hstack([np.asarray(e["measured"]), np.asarray(e["estimate"])])
-    u = np.vstack([np.hstack([run.tau_plus, run.tau_minus]), e["tail_u"]]).reshape(-1, L.nu)
+    u = np.vstack([L.actuators.controls(run.half_torques()), e["tail_u"]]).reshape(-1, L.nu)
     return _view(loop, run, x, u, "estimate")
 
 

@@ -9,7 +9,8 @@ length dt it
    holds the delivered torques constant over the interval (zero-order hold);
 2. adds the torque disturbance ``d_k`` (N m per joint: a constant plus, with ``std`` > 0, a
    normal draw per interval);
-3. integrates ``qddot = ABA(q, qdot, tau_plus + tau_minus + d)`` (numeric Pinocchio on the
+3. integrates ``qddot = ABA(q, qdot, tau + d)``, tau the actuators' joint torque (the halves'
+   sum, 0 on passive joints, or under the ``active`` coupling ``sum ma * limit``; numeric Pinocchio on the
    plant's model) and ``dm/dt`` of every half (its fatigue model's right-hand side, evaluated
    by :meth:`SignedTorqueActuators.fatigue_rates`) with scipy's adaptive ``solve_ivp``
    (``integrator = "rk45"``, the default, with ``rtol`` and ``atol``: the plant stands for
@@ -190,12 +191,10 @@ class Plant:
         L = self.layout
         m, u = ca.SX.sym("m", L.n_fatigue), ca.SX.sym("u", L.nu)
         # the halves' own right-hand sides with the plant's parameters (one owner of the equations)
-        self._rates = ca.Function("plant_rates", [m, u], [self.actuators.fatigue_rates(m, u[: L.nv], u[L.nv :])])
+        self._rates = ca.Function("plant_rates", [m, u], [self.actuators.fatigue_rates(m, u)])
         self._fatigued = [L.nq + L.nv + r for r in self.actuators.fatigued_rows()]
         self._constant, self._std = self.settings.disturbance.vectors(self.model.joint_names)
-        limits = self.actuators.signed_limits  # half order (j0+, j0-, j1+, ...)
-        self._limits_u = np.concatenate([limits[0::2], limits[1::2]])  # control order (tau_plus, tau_minus)
-        self._half_of_u = np.concatenate([np.arange(0, L.n_halves, 2), np.arange(1, L.n_halves, 2)])
+        self._limits_u = self.actuators.controls(self.actuators.signed_limits)  # in control order
 
     def _rng(self, node: int, channel: int) -> np.random.Generator:
         return np.random.default_rng([int(self.settings.seed), int(node), channel])
@@ -210,7 +209,7 @@ class Plant:
         """The torques (nu,) the plant delivers for the command ``u`` (nu,) in state ``x``: each
         half's target load limited to its capacity ``max(1 - mf, 0)`` (the sign of a command is
         not corrected: the solver's bounds hold up to its bound relaxation, about 1e-8)."""
-        cap = np.maximum(self.capacity(x), 0.0)[self._half_of_u]
+        cap = self.actuators.controls(np.maximum(self.capacity(x), 0.0))  # in control order
         TL = np.asarray(u, dtype=float) / self._limits_u
         return np.minimum(TL, cap) * self._limits_u
 
@@ -225,7 +224,7 @@ class Plant:
         """``dx/dt`` (nx,) under the delivered torques ``u`` (nu,) and disturbance ``d`` (nv,)."""
         L = self.layout
         q, v = x[L.q], x[L.v]
-        tau = u[: L.nv] + u[L.nv :] + d
+        tau = self.actuators.joint_torque(u, x[L.m]) + d  # the actuators' torque (0 on passive joints)
         a = pin.aba(self.model.pin_model, self._data, q, v, tau)
         m = np.asarray(self._rates(x[L.m], u)).reshape(-1)
         return np.concatenate([v, a, m])

@@ -45,14 +45,16 @@ SEARCH_DTYPE = np.dtype([("n_cycles", "i4"), ("converged", "?"), ("status", "S40
 class RunResult:
     """One OCP run (full horizon, or sliding horizon stitched from its windows).
 
-    Shapes: nodes = n_cycles * intervals_per_cycle + 1, intervals = nodes - 1, halves = 2 nv.
+    Shapes: nodes = n_cycles * intervals_per_cycle + 1, intervals = nodes - 1, halves = 2 na (two
+    per actuated joint; a passive joint has none).
 
     Attributes:
         name: group name in the file.
         attrs: run attributes (see :data:`RUN_ATTRIBUTES`; more may be present).
         t: node times (s), (nodes,).
         q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
-        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv).
+        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv), a column per joint, 0
+            on passive joints (:meth:`half_torques`: the halves that exist).
         fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
             the columns of halves whose model has no such state.
         cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
@@ -150,9 +152,26 @@ class RunResult:
     def target_loads(self) -> np.ndarray:
         """Target load TL = tau / tau_limit of every half on every interval (dimensionless, >= 0),
         (intervals, halves), halves ordered as :attr:`actuator_names` (plus, minus of each joint)."""
-        tau = np.empty((self.tau_plus.shape[0], 2 * self.tau_plus.shape[1]))
-        tau[:, 0::2], tau[:, 1::2] = self.tau_plus, self.tau_minus
-        return tau / self.signed_limits[None, :]
+        return self.half_torques() / self.signed_limits[None, :]
+
+    def half_torques(self) -> np.ndarray:
+        """Torque of every half on every interval (N m), (intervals, halves), in the order of
+        :attr:`actuator_names` (``<joint>_plus`` from ``tau_plus``, ``<joint>_minus`` from
+        ``tau_minus``)."""
+        columns = []
+        for name in self.actuator_names:
+            joint, side = half_joint(name)
+            if joint not in self.joint_names:
+                raise ResultFileError(f"run {self.name!r}: actuator half {name!r} drives no joint of {list(self.joint_names)}")
+            source = self.tau_plus if side == "plus" else self.tau_minus
+            columns.append(np.asarray(source)[:, self.joint_names.index(joint)])
+        return np.column_stack(columns) if columns else np.zeros((self.tau_plus.shape[0], 0))
+
+    @property
+    def passive_joints(self) -> tuple[str, ...]:
+        """The joints without actuator halves."""
+        driven = {half_joint(n)[0] for n in self.actuator_names}
+        return tuple(j for j in self.joint_names if j not in driven)
 
     @property
     def fatigue_states(self) -> tuple[str, ...]:
@@ -200,6 +219,28 @@ class RunResult:
         if not 0 <= cycle < self.n_cycles:
             raise ResultFileError(f"cycle {cycle} is out of range: run {self.name!r} has cycles 0..{self.n_cycles - 1}")
         return slice(cycle * n, (cycle + 1) * n + 1)
+
+
+def half_joint(name: str) -> tuple[str, str]:
+    """``("elbow", "plus")`` from the half name ``"elbow_plus"`` (:attr:`ActuatorHalf.name
+    <fatigue_pin.ocp.actuators.ActuatorHalf.name>`)."""
+    joint, _, side = name.rpartition("_")
+    if side not in ("plus", "minus") or not joint:
+        raise ResultFileError(f"actuator half {name!r}: expected <joint>_plus or <joint>_minus")
+    return joint, side
+
+
+def joint_columns(run_joints: tuple[str, ...], halves: tuple[str, ...], tau_halves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(tau_plus, tau_minus)``, each (intervals, joints) with 0 on joints without a half, from
+    the torques of the named halves (intervals, halves): the inverse of :meth:`RunResult.half_torques`."""
+    tau_halves = np.asarray(tau_halves, dtype=float).reshape(-1, len(halves))
+    plus, minus = np.zeros((tau_halves.shape[0], len(run_joints))), np.zeros((tau_halves.shape[0], len(run_joints)))
+    for k, name in enumerate(halves):
+        joint, side = half_joint(name)
+        if joint not in run_joints:
+            raise ResultFileError(f"actuator half {name!r} drives no joint of {list(run_joints)}")
+        (plus if side == "plus" else minus)[:, run_joints.index(joint)] = tau_halves[:, k]
+    return plus, minus
 
 
 def torque_limits_at_cycle_ends(mf: np.ndarray, signed_limits: np.ndarray, intervals_per_cycle: int) -> np.ndarray:
@@ -326,6 +367,7 @@ def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None)
         "weights": json.dumps(dict(zip(ocp.cost_terms, ocp.problem.weights.tolist()))),
         "fatigue_params": fatigue_parameters(ocp.actuators.halves),
         "tau_limits": ocp.actuators.signed_limits,
+        "coupling": ocp.actuators.coupling_kind,
         "intervals_per_cycle": ocp.task.intervals_per_cycle,
         "dt": ocp.task.dt,
         "substeps": ocp.transcription.substeps,
@@ -361,8 +403,8 @@ def to_run_result(
         t=t,
         q=x[:, L.q],
         qdot=x[:, L.v],
-        tau_plus=u[:, : L.nv],
-        tau_minus=u[:, L.nv :],
+        tau_plus=ocp.actuators.per_joint(u)[0],
+        tau_minus=ocp.actuators.per_joint(u)[1],
         fatigue={s: L.fatigue_columns(x, s) for s in L.state_kinds},
         cycle_costs=cycle_costs,
         torque_limits=torque_limits_at_cycle_ends(fatigued, ocp.actuators.signed_limits, ocp.task.intervals_per_cycle),

@@ -163,7 +163,7 @@ class _Search:
         for n, attempts in self.done.items():
             if attempts[-1]["converged"]:
                 run = self.store.read(step_run_name(self.name, n))
-                self.solutions[n] = (layout.assemble(run.q, run.qdot, run.fatigue), np.hstack([run.tau_plus, run.tau_minus]))
+                self.solutions[n] = (layout.assemble(run.q, run.qdot, run.fatigue), layout.actuators.controls(run.half_torques()))
         if self.done:
             self.rep.line(f"resuming the search {self.name!r}: N = {sorted(self.done)} already done")
 

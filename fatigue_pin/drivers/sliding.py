@@ -300,7 +300,7 @@ class SlidingHorizon:
             raise ResultFileError(f"cannot resume run {name!r} in {store!r}: its {key} differ from this run's "
                                   f"({stored.get(key)!r} stored, {mine.get(key)!r} now)")
         x = self.ocp.layout.assemble(run.q, run.qdot, run.fatigue)
-        u = np.hstack([run.tau_plus, run.tau_minus])
+        u = self.ocp.actuators.controls(run.half_torques())
         windows = [tuple(row) for row in run.windows.tolist()]
         return _State(x, u, run.cycle_costs, run.cycle_wall_time_s, windows, bool(run.attrs.get("finished", False)))
 

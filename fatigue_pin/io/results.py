@@ -9,8 +9,10 @@ Layout (``docs/results.md``)::
                                      urdf (the model's URDF text)
         t            (nodes,)              s
         q, qdot      (nodes, nq)           rad, rad/s          attribute joints
-        tau_plus     (intervals, nv)       N m                 attribute joints
-        tau_minus    (intervals, nv)       N m
+        tau_halves   (intervals, halves)   N m, the torque of every actuator half that exists
+                                           (two per actuated joint; none for a passive joint),
+                                           attribute actuators (layouts 1-2: tau_plus and
+                                           tau_minus, (intervals, nv), attribute joints)
         <state>      (nodes, halves)       1, one dataset per fatigue state the models declare
                                            (Xia: ma, mr, mf; group attribute fatigue_states lists
                                            them; NaN in the columns of halves without the state)
@@ -26,9 +28,9 @@ Layout (``docs/results.md``)::
                                      attributes: run (the best run's name), max_cycles, the labels
     /searched/<table>/N<n>           the converged solution of every N the search tried
 
-The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 2: every
-run names its fatigue states in ``fatigue_states``); readers refuse a newer layout and still read
-layout 1.
+The root attribute ``format`` is ``fatigue_pin.results/<layout>`` (:data:`LAYOUT`, now 3: the
+torques of the halves that exist, ``tau_halves``; 2: every run names its fatigue states in
+``fatigue_states``); readers refuse a newer layout and still read layouts 1 and 2.
 
 Every write takes the file's lock (``flock`` of ``.<name>.lock`` beside it, so concurrent
 writers take turns and none loses another's update), copies the current file's bytes beside it,
@@ -60,6 +62,7 @@ from fatigue_pin.drivers.run import (
     WINDOW_DTYPE,
     RunResult,
     check_run_name,
+    joint_columns,
     torque_limits_at_cycle_ends,
 )
 
@@ -95,17 +98,18 @@ def _write_run(group: h5py.Group, run: RunResult) -> None:
     group.attrs["urdf"] = run.urdf
     group.attrs["study"] = run.study
     group.attrs["fatigue_states"] = list(run.fatigue)
-    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_plus": "N m", "tau_minus": "N m",
+    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_halves": "N m",
              "cycle_costs": "cost", "torque_limits": "N m", "cycle_wall_time_s": "s"}
-    arrays = {name: getattr(run, name) for name in units} | dict(run.fatigue) | {"fatigued": run.fatigued}
+    arrays = ({name: getattr(run, name) for name in units if name != "tau_halves"} | {"tau_halves": run.half_torques()}
+              | dict(run.fatigue) | {"fatigued": run.fatigued})
     units |= {name: "1" for name in run.fatigue} | {"fatigued": "1"}
     for name, unit in units.items():
         data = np.asarray(arrays[name], dtype=float)
         ds = group.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
         ds.attrs["unit"] = unit
-    for name in ("q", "qdot", "tau_plus", "tau_minus"):
+    for name in ("q", "qdot"):
         group[name].attrs["joints"] = list(run.joint_names)
-    for name in (*run.fatigue, "fatigued", "torque_limits"):
+    for name in (*run.fatigue, "fatigued", "torque_limits", "tau_halves"):
         group[name].attrs["actuators"] = list(run.actuator_names)
     group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
     if run.windows is not None:
@@ -123,22 +127,28 @@ def _str_list(values: Any) -> tuple[str, ...]:
 
 def _read_run(group: h5py.Group, name: str) -> RunResult:
     states = _str_list(group.attrs["fatigue_states"]) if "fatigue_states" in group.attrs else LEGACY_FATIGUE_STATES
-    missing = [k for k in ("t", "q", "qdot", "tau_plus", "tau_minus", *states, "cycle_costs", "torque_limits") if k not in group]
+    torques = ("tau_halves",) if "tau_halves" in group else ("tau_plus", "tau_minus")  # layouts 1-2: per joint
+    missing = [k for k in ("t", "q", "qdot", *torques, *states, "cycle_costs", "torque_limits") if k not in group]
     if missing:
         raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
     attrs = {k: _attr_value(v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
+    joints = _str_list(group["q"].attrs["joints"])
+    if "tau_halves" in group:
+        tau_plus, tau_minus = joint_columns(joints, _str_list(group["tau_halves"].attrs["actuators"]), group["tau_halves"][()])
+    else:
+        tau_plus, tau_minus = group["tau_plus"][()], group["tau_minus"][()]
     run = RunResult(
         name=name,
         attrs=attrs,
         t=group["t"][()],
         q=group["q"][()],
         qdot=group["qdot"][()],
-        tau_plus=group["tau_plus"][()],
-        tau_minus=group["tau_minus"][()],
+        tau_plus=tau_plus,
+        tau_minus=tau_minus,
         fatigue={s: group[s][()] for s in states},
         cycle_costs=group["cycle_costs"][()],
         torque_limits=group["torque_limits"][()],
-        joint_names=_str_list(group["q"].attrs["joints"]),
+        joint_names=joints,
         actuator_names=_str_list(group[states[0]].attrs["actuators"]),
         cost_terms=_str_list(group["cycle_costs"].attrs["terms"]),
         cycle_wall_time_s=group["cycle_wall_time_s"][()] if "cycle_wall_time_s" in group else np.zeros(0),
@@ -156,7 +166,7 @@ def _text(value: Any) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-LAYOUT = 2
+LAYOUT = 3
 #: The ``format`` attribute of files this version writes.
 FORMAT = f"fatigue_pin.results/{LAYOUT}"
 _FORMAT_PREFIX = "fatigue_pin.results/"
@@ -335,7 +345,7 @@ def write_run(path: str | Path, run: RunResult) -> Path:
             del h5[run.name]
         _write_run(h5.create_group(run.name), run)
 
-    arrays = [run.t, run.q, run.qdot, run.tau_plus, run.tau_minus, run.cycle_costs, run.torque_limits, *run.fatigue.values(),
+    arrays = [run.t, run.q, run.qdot, run.half_torques(), run.cycle_costs, run.torque_limits, *run.fatigue.values(),
               *run.extras.values()]
     size = sum(np.asarray(a).nbytes for a in arrays) + len(run.urdf) + len(run.study)
     _atomic_rewrite(path, set(), fill, new_bytes=size)

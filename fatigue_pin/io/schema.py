@@ -4,6 +4,7 @@ Each table of a study is read by the class it configures, and its keys are that 
 
 ======================  =====================================================================
 ``[model]``             :class:`~fatigue_pin.robot.model.ModelSource` (``payload``: :class:`~fatigue_pin.robot.model.Payload`)
+``[actuators]``         :class:`~fatigue_pin.ocp.actuators.Actuation`
 ``[task]``              :class:`~fatigue_pin.ocp.task.Task` but ``items``, and the arrays of
                         :data:`TASK_ARRAYS` (task items of :mod:`fatigue_pin.ocp.task`)
 ``[transcription]``     :class:`~fatigue_pin.ocp.transcription.Transcription`

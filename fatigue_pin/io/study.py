@@ -189,7 +189,23 @@ class Study:
         from fatigue_pin.ocp.problem import Problem
 
         model = model or self.model()
-        return Problem.build(model, self.fatigue_spec(model), self.task(), self.costs())
+        return Problem(model, self.actuators(model), self.task(), tuple(self.costs()))
+
+    def actuation(self):
+        """The :class:`~fatigue_pin.ocp.actuators.Actuation` of ``[actuators]``."""
+        return build(SECTIONS["actuators"], self.data["actuators"], "actuators")
+
+    def actuators(self, model):
+        """The :class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators` of ``model`` with the
+        fatigue models of ``[fatigue]`` and the passive joints and coupling of ``[actuators]``."""
+        from fatigue_pin.ocp.actuators import SignedTorqueActuators
+
+        actuation = self.actuation()
+        unknown = [j for j in actuation.passive if j not in model.joint_names]
+        if unknown:
+            raise StudyError(f"actuators.passive = {shown(list(actuation.passive))}: joint {unknown[0]!r} is not in model "
+                             f"{model.name!r}; its joints are {list(model.joint_names)}")
+        return SignedTorqueActuators.from_model(model, self.fatigue_spec(model), actuation)
 
     def transcription(self):
         """The :class:`~fatigue_pin.ocp.transcription.Transcription` of ``[transcription]``."""

@@ -1,7 +1,7 @@
 """The tables of a study file: :func:`normalise` validates a parsed study and fills every default,
 :func:`to_toml` writes a normalised study back (docs/studies.md lists every key).
 
-``[model]``, ``[task]``, ``[transcription]``, ``[horizon]`` and ``[solver]`` are read by the classes
+``[model]``, ``[actuators]``, ``[task]``, ``[transcription]``, ``[horizon]`` and ``[solver]`` are read by the classes
 they configure (:mod:`fatigue_pin.io.schema`, :data:`SECTIONS`); the arrays of ``[task]`` by the
 task items of :mod:`fatigue_pin.ocp.task`. ``[fatigue]`` is checked against the fatigue models'
 parameter names, ``[costs]`` against the cost kinds.
@@ -15,6 +15,7 @@ from typing import Any
 
 from fatigue_pin.drivers.horizon import Horizon
 from fatigue_pin.io.schema import StudyError, build, fill, is_toml_number, read_table, table_keys
+from fatigue_pin.ocp.actuators import Actuation
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, Task
 from fatigue_pin.ocp.transcription import Transcription
@@ -22,9 +23,10 @@ from fatigue_pin.robot.model import ModelSource
 from fatigue_pin.core.text import plain, shown
 
 #: The tables read by the class they configure (``[task]``: :func:`task_table`).
-SECTIONS: dict[str, type] = {"model": ModelSource, "transcription": Transcription, "horizon": Horizon, "solver": SolverOptions}
+SECTIONS: dict[str, type] = {"model": ModelSource, "actuators": Actuation, "transcription": Transcription, "horizon": Horizon,
+                             "solver": SolverOptions}
 #: The keys at the top of a study.
-TOP_KEYS = ("name", "model", "fatigue", "task", "costs", "transcription", "horizon", "solver", "labels")
+TOP_KEYS = ("name", "model", "actuators", "fatigue", "task", "costs", "transcription", "horizon", "solver", "labels")
 #: The arrays of tables of ``[task]``, after Task's own keys (its ``items`` field, built from them).
 TASK_ARRAYS = ("targets", "ranges", "planes")
 #: A frame target table names FrameOrientation's fields thus (beside FrameTarget's own keys).
@@ -106,7 +108,7 @@ def key_tables() -> dict[str, dict[str, Any]]:
         "model": table_keys(ModelSource), "model.payload": table_keys(Payload),
         "task": table_keys(Task, skip=("items",)), "task.targets (joint)": table_keys(JointTarget),
         "task.targets (frame)": frame, "task.ranges": table_keys(JointRange), "task.planes": table_keys(FramePlane),
-        **{section: table_keys(SECTIONS[section]) for section in ("transcription", "horizon", "solver")},
+        **{section: table_keys(SECTIONS[section]) for section in ("actuators", "transcription", "horizon", "solver")},
     }
 
 
@@ -199,7 +201,7 @@ def normalise(data: dict[str, Any]) -> dict[str, Any]:
             raise StudyError(f"missing table [{section}]")
     out["model"] = read_table(ModelSource, data["model"], "model")[0]
     out["task"] = task_table(data["task"])[0]
-    for section in ("transcription", "horizon", "solver"):
+    for section in ("actuators", "transcription", "horizon", "solver"):
         out[section] = read_table(SECTIONS[section], data.get(section, {}), section)[0]
     if "fatigue" not in data:
         raise StudyError("missing table [fatigue]: expected a fatigue model and its parameters (or a preset)")
@@ -267,6 +269,8 @@ def to_toml(data: dict[str, Any]) -> str:
         lines.append("")
 
     table("model", data["model"])
+    if "actuators" in data:
+        table("actuators", data["actuators"])
     fat = data["fatigue"]
     table("fatigue", {k: v for k, v in fat.items() if k != "joints"})
     for joint, sub in fat.get("joints", {}).items():

@@ -139,7 +139,8 @@ class RobotModel:
         joint_names: names of the actuated joints, in Pinocchio order (length nv).
         q_lower, q_upper: position bounds, shape (nq,), rad or m.
         v_lower, v_upper: velocity bounds, shape (nv,), rad/s or m/s.
-        tau_lower, tau_upper: torque/force bounds, shape (nv,), N m or N (tau_lower < 0 < tau_upper).
+        tau_lower, tau_upper: torque/force bounds, shape (nv,), N m or N (tau_lower < 0 < tau_upper, or
+            both 0: a passive joint, no actuator; :mod:`fatigue_pin.ocp.actuators`).
         aba: ``casadi.Function`` (q[nq], v[nv], tau[nv]) -> ddq[nv], Pinocchio's ABA on SX.
         rnea: ``casadi.Function`` (q[nq], v[nv], a[nv]) -> tau[nv], Pinocchio's RNEA on SX.
         payload: the :class:`Payload` added to ``pin_model`` (and so to ``aba``, ``rnea``), or None.
@@ -438,8 +439,9 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
     v_max = np.where(np.isfinite(v_max) & (v_max > 0), v_max, 10 * math.pi)
     effort = np.array(model.effortLimit, dtype=float)
     for name, e in zip(names, effort):
-        if not (np.isfinite(e) and e > 0):
-            raise ModelError(f"{path}: joint {name!r} has effort limit {e}; expected a finite effort > 0 in its <limit> tag")
+        if not (np.isfinite(e) and e >= 0):
+            raise ModelError(f"{path}: joint {name!r} has effort limit {e}; expected a finite effort >= 0 in its <limit> tag "
+                             "(0: a passive joint)")
     inertia = np.diag(pin.crba(model, model.createData(), pin.neutral(model)))
     for name, m in zip(names, inertia):
         if not (np.isfinite(m) and m > 1e-12):

@@ -10,7 +10,7 @@ kind of bad input the parser would reject or that fatigue_pin cannot model:
 * a joint without type, without a known parent or child link;
 * a revolute or prismatic joint without ``<limit>``, or without its ``effort`` or ``velocity``;
 * a number that is not a finite number (``lower="zero"``, ``upper="nan"``, ``xyz="0 0"``);
-* a lower position limit above the upper one, an effort limit <= 0, a velocity limit < 0, a
+* a lower position limit above the upper one, an effort limit < 0 (0 makes the joint passive), a velocity limit < 0, a
   zero joint axis;
 * a ``<mass>`` without its value, an ``<inertia>`` without one of its six entries;
 * a link of negative mass or with negative principal moments on the diagonal of its inertia.
@@ -96,8 +96,9 @@ def _check_joint(path: Path, joint: ET.Element, links: set[str]) -> None:
         if limit.get(key) is None:
             raise _bad(path, f"joint [{name}]: limit has no {key}")
     effort, velocity = float(limit.get("effort")), float(limit.get("velocity"))
-    if effort <= 0:
-        raise ModelError(f"{path}: joint {name!r} has effort limit {effort}; expected a finite effort > 0 in its <limit> tag")
+    if effort < 0:
+        raise ModelError(f"{path}: joint {name!r} has effort limit {effort}; expected a finite effort >= 0 in its <limit> tag "
+                         "(0: a passive joint)")
     if velocity < 0:
         raise ModelError(f"{path}: joint {name!r} has velocity limit {velocity}; expected a speed >= 0 in its <limit> tag "
                          "(0: none, taken as 10 pi)")

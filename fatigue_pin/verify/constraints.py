@@ -5,8 +5,6 @@ the models' own ``rates`` (docs/verify.md gives the equations)."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import math
 
 import numpy as np
@@ -29,8 +27,7 @@ def finite_check(s: Stored) -> VerifyCheck:
         ("node", s.Y, [f"q {j}" for j in joints] + [f"qdot {j}" for j in joints]),
         ("node", s.M, s.state_labels),
         ("node", np.asarray(s.run.fatigued, dtype=float), [f"fatigued {h.name}" for h in s.halves]),
-        ("interval", np.column_stack([s.run.tau_plus, s.run.tau_minus]),
-         [f"tau_plus {j}" for j in joints] + [f"tau_minus {j}" for j in joints]),
+        ("interval", s.run.half_torques(), [f"tau {h.name}" for h in s.halves]),
     ]
     count, where = 0, ""
     for what, values, labels in parts:
@@ -54,14 +51,18 @@ def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float
     mf = np.asarray(s.run.fatigued, dtype=float)
     if s.horizon == "mpc":
         tail = np.asarray(s.run.extras.get("tail_u", np.zeros((0, 0))), dtype=float)
-        nv = s.run.tau_plus.shape[1]
-        if tail.ndim == 2 and tail.shape[0] > 0 and tail.shape[1] == 2 * nv:
-            after = dataclasses.replace(s.run, tau_plus=tail[:1, :nv], tau_minus=tail[:1, nv:])
-            TL_nodes[-1] = after.target_loads()[0]
+        na = len(s.halves) // 2
+        if tail.ndim == 2 and tail.shape[0] > 0 and tail.shape[1] == 2 * na:
+            # controls (tau_plus of the actuated joints, then tau_minus) in half order
+            halves = np.ravel(np.column_stack([tail[0, :na], tail[0, na:]]))
+            TL_nodes[-1] = halves / s.limits
         else:
             TL_nodes, mf = TL_nodes[:-1], mf[:-1]
     c = TL_nodes + mf
     value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
+    coupling = str(s.run.attrs.get("coupling", "tl+mf<=1"))
+    if coupling != "tl+mf<=1":  # not a constraint of the run: reported only
+        return VerifyCheck(f"coupling TL + m_fatigued in [0, 1] (not imposed: coupling {coupling!r})", value, "1", None, where), 0.0
     return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value
 
 
@@ -75,10 +76,8 @@ def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], f
     with np.errstate(invalid="ignore"):
         b_q, at_bq = worst(np.maximum(q_lo - run.q, run.q - q_hi), joints, "node")
         b_v, at_bv = worst(np.abs(run.qdot) - v_max, joints, "node")
-        lim_plus, lim_minus = s.limits[0::2], s.limits[1::2]
-        b_tp = np.maximum(-run.tau_plus, run.tau_plus - lim_plus)
-        b_tm = np.maximum(run.tau_minus, lim_minus - run.tau_minus)
-        b_t, at_bt = worst(np.column_stack([b_tp, b_tm]), [f"{j} plus" for j in joints] + [f"{j} minus" for j in joints], "interval")
+        sign, tau = np.sign(s.limits), run.half_torques()  # plus halves in [0, limit], minus halves in [limit, 0]
+        b_t, at_bt = worst(np.maximum(-sign * tau, sign * tau - np.abs(s.limits)), [h.name for h in s.halves], "interval")
         b_m, at_bm = worst(np.maximum(-s.M, s.M - 1.0), s.state_labels, "node")
     checks = [
         VerifyCheck("bound q", b_q, "rad", tol.bound, at_bq),

@@ -31,7 +31,7 @@ from typing import Any, Callable
 import numpy as np
 
 from fatigue_pin.core.errors import FatiguePinError, ResultFileError
-from fatigue_pin.drivers.run import RunResult
+from fatigue_pin.drivers.run import RunResult, half_joint
 from fatigue_pin.verify.fatigue_rhs import numpy_rhs
 from fatigue_pin.core.text import shown
 
@@ -122,6 +122,10 @@ def rebuild(run: RunResult) -> Stored:
         ResultFileError: the run lacks what is needed or is inconsistent (one line).
     """
     notes: list[str] = []
+    coupling = str(run.attrs.get("coupling", "tl+mf<=1"))
+    if coupling == "active":
+        raise ResultFileError(f"run {run.name!r} has the coupling 'active' (torque = ma x limit within each interval); "
+                              "verify checks runs of the couplings 'tl+mf<=1' and 'observed'")
     N = _intervals(run)
     horizon, dt, n, substeps = _grid(run, notes)
     study = _study(run, notes)
@@ -243,9 +247,10 @@ def _limits(run: RunResult, robot, notes: list[str]) -> np.ndarray:
     if not np.all(np.isfinite(signed)) or np.any(signed[0::2] <= 0) or np.any(signed[1::2] >= 0):
         raise ResultFileError(f"run {run.name!r}: torque limits {signed.tolist()} N m; expected finite limits, > 0 for "
                               "each plus half and < 0 for each minus half")
-    effort = np.asarray(robot.tau_upper, dtype=float)
-    if signed.size != 2 * effort.size:
-        raise ResultFileError(f"run {run.name!r}: {signed.size} torque limits for {2 * effort.size} halves")
+    joints = [half_joint(name)[0] for name in run.actuator_names[0::2]]  # the actuated joints
+    if signed.size != 2 * len(joints) or any(j not in robot.joint_names for j in joints):
+        raise ResultFileError(f"run {run.name!r}: {signed.size} torque limits for the halves {list(run.actuator_names)}")
+    effort = np.asarray(robot.tau_upper, dtype=float)[[list(robot.joint_names).index(j) for j in joints]]
     if not np.allclose(signed, np.ravel(np.column_stack([effort, -effort]))):
         notes.append(f"stored torque limits {signed.tolist()} differ from the URDF effort limits {effort.tolist()}")
     return signed

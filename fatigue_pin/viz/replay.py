@@ -82,9 +82,11 @@ def build_models(urdf: str = "") -> tuple[Any, Any]:
     return model, visual
 
 
-def _half_columns(run: RunResult, joint: str) -> tuple[int, int]:
-    """Columns of ``<joint>_plus`` and ``<joint>_minus`` in ``mf``."""
+def _half_columns(run: RunResult, joint: str) -> tuple[int, int] | None:
+    """Columns of ``<joint>_plus`` and ``<joint>_minus`` in ``mf``; None for a passive joint (no halves)."""
     names = list(run.actuator_names)
+    if joint in run.passive_joints:
+        return None
     try:
         return names.index(f"{joint}_plus"), names.index(f"{joint}_minus")
     except ValueError:
@@ -100,7 +102,7 @@ class _Kinematics:
     model: Any
     visual: Any
     joint_ids: list[int]  # Pinocchio joint id of every run joint
-    halves: list[tuple[int, int]]  # (plus, minus) mf columns of every run joint
+    halves: list[tuple[int, int] | None]  # (plus, minus) mf columns of every run joint (None: passive)
     segment_of: dict[str, int] = field(default_factory=dict)  # visual name -> index of its joint in joint_ids
     # coloured visuals whose mesh file (Collada) is sent as triangles: a Collada scene is a group
     # without one material, so its colour could not be keyframed; the triangles are the mesh as
@@ -165,13 +167,16 @@ def _poses(kin: _Kinematics, q: np.ndarray) -> dict[str, np.ndarray]:
 def _colors(kin: _Kinematics, mf_row: np.ndarray) -> dict[str, np.ndarray]:
     """RGB of every fatigue marker and coloured segment for one node of ``mf`` (halves,), by meshcat path."""
     out = {}
-    for jid, (p, m) in zip(kin.joint_ids, kin.halves):
-        name = kin.model.names[jid]
-        out[kin.marker_path(name, "plus")] = fatigue_color(mf_row[p])
-        out[kin.marker_path(name, "minus")] = fatigue_color(mf_row[m])
+    def mf(j: int) -> tuple[float, float]:  # a passive joint never tires: drawn rested
+        cols = kin.halves[j]
+        return (0.0, 0.0) if cols is None else (mf_row[cols[0]], mf_row[cols[1]])
+
+    for j, jid in enumerate(kin.joint_ids):
+        name, (p, m) = kin.model.names[jid], mf(j)
+        out[kin.marker_path(name, "plus")] = fatigue_color(p)
+        out[kin.marker_path(name, "minus")] = fatigue_color(m)
     for gname, j in kin.segment_of.items():
-        p, m = kin.halves[j]
-        out[kin.visual_path(gname)] = fatigue_color(max(mf_row[p], mf_row[m]))
+        out[kin.visual_path(gname)] = fatigue_color(max(mf(j)))
     return out
 
 

@@ -27,10 +27,10 @@ def _layout(path: Path) -> str:
         return h5.attrs["format"]
 
 
-def test_files_carry_layout_2(tmp_path):
+def test_files_carry_layout_3(tmp_path):
     path = tmp_path / "a.h5"
     write_run(path, make_run("full/a"))
-    assert LAYOUT == 2 and _layout(path) == "fatigue_pin.results/2"
+    assert LAYOUT == 3 and _layout(path) == "fatigue_pin.results/3"
     with h5py.File(path, "r") as h5:
         assert list(h5["full/a"].attrs["fatigue_states"]) == ["ma", "mr", "mf"]
 
@@ -52,7 +52,7 @@ def test_layout_1_files_are_read_and_upgraded_on_write(tmp_path):
     old = read_run(path, "full/old")
     assert old.fatigue_states == ("ma", "mr", "mf") and np.array_equal(old.mf, make_run().mf)
     write_run(path, make_run("full/new"))
-    assert _layout(path) == "fatigue_pin.results/2"
+    assert _layout(path) == "fatigue_pin.results/3"
     assert list_runs(path) == ["full/new", "full/old"]
     with h5py.File(path, "r") as h5:
         assert list(h5["full/old"].attrs["fatigue_states"]) == ["ma", "mr", "mf"]
@@ -60,17 +60,35 @@ def test_layout_1_files_are_read_and_upgraded_on_write(tmp_path):
     assert np.array_equal(read_run(path, "full/old").q, old.q)
 
 
+def test_layout_2_runs_with_torques_per_joint_are_read(tmp_path):
+    """A run as layout 2 stored it, tau_plus and tau_minus (intervals, nv) per joint, reads back
+    as the run written today (whose file has the halves' torques, tau_halves)."""
+    path = tmp_path / "v2.h5"
+    run = make_run("full/old")
+    write_run(path, run)
+    with h5py.File(path, "a") as h5:
+        group = h5["full/old"]
+        assert list(group["tau_halves"].attrs["actuators"]) == list(run.actuator_names)
+        del group["tau_halves"]
+        for name in ("tau_plus", "tau_minus"):
+            group.create_dataset(name, data=getattr(run, name)).attrs["joints"] = list(run.joint_names)
+        h5.attrs["format"] = "fatigue_pin.results/2"
+    old = read_run(path, "full/old")
+    assert np.array_equal(old.tau_plus, run.tau_plus) and np.array_equal(old.tau_minus, run.tau_minus)
+    assert np.array_equal(old.target_loads(), run.target_loads())
+
+
 def _newer(path: Path) -> bytes:
     write_run(path, make_run("full/a"))
     with h5py.File(path, "a") as h5:
-        h5.attrs["format"] = "fatigue_pin.results/3"
+        h5.attrs["format"] = "fatigue_pin.results/4"
     return path.read_bytes()
 
 
 def test_newer_layout_is_refused_by_readers_and_writers(tmp_path):
     path = tmp_path / "new.h5"
     before = _newer(path)
-    message = f"'{path}' was written by a newer fatigue_pin (layout 3); this version reads layouts up to 2"
+    message = f"'{path}' was written by a newer fatigue_pin (layout 4); this version reads layouts up to 3"
     for call in (lambda: list_runs(path), lambda: read_run(path), lambda: read_search(path),
                  lambda: write_run(path, make_run("full/b")), lambda: results.check_output(path)):
         with pytest.raises(ResultFileError) as err:

@@ -18,6 +18,7 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "studies.md"
 HEADINGS = {
     "## `[model]` (required)": "model",
     "### `model.payload`": "model.payload",
+    "## `[actuators]`": "actuators",
     "## `[task]` (required)": "task",
     "### `[[task.targets]]`: joint targets": "task.targets (joint)",
     "### `[[task.targets]]`: frame targets": "task.targets (frame)",
