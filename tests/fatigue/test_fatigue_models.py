@@ -136,8 +136,8 @@ def test_actuators_with_halves_of_different_models():
 
     rng = np.random.default_rng(0)
     m = rng.uniform(0, 0.5, act.n_states)
-    tp, tm = np.array([20.0, 10.0]), np.array([-8.0, -30.0])
-    rates = np.asarray(ca.DM(act.fatigue_rates(m, tp, tm)).full()).ravel()
+    u = np.array([20.0, 10.0, -8.0, -30.0])  # (tau_plus, tau_minus)
+    rates = np.asarray(ca.DM(act.fatigue_rates(m, u)).full()).ravel()
     TL = [20 / 50, 8 / 40, 10 / 25, 30 / 50]
     np.testing.assert_allclose(rates[0:3], xia.rates(m[0:3], TL[0]), atol=1e-15)
     np.testing.assert_allclose(rates[3:6], xia.rates(m[3:6], TL[1]), atol=1e-15)
@@ -145,9 +145,9 @@ def test_actuators_with_halves_of_different_models():
     np.testing.assert_allclose(rates[10:13], xia.rates(m[10:13], TL[3]), atol=1e-15)
     # The same with the parameter vector as a symbol (as an OCP passes it).
     p = ca.SX.sym("p", act.n_params)
-    f = ca.Function("f", [p], [act.fatigue_rates(m, tp, tm, p)])
+    f = ca.Function("f", [p], [act.fatigue_rates(m, u, p)])
     np.testing.assert_allclose(np.asarray(f(act.param_vector())).ravel(), rates, atol=1e-15)
-    coupling = np.asarray(ca.DM(act.coupling(m, tp, tm)).full()).ravel()
+    coupling = np.asarray(ca.DM(act.coupling(m, u)).full()).ravel()
     np.testing.assert_allclose(coupling, np.array(TL) + m[[2, 5, 8, 12]], atol=1e-15)
     act.check_stabiliser(0.004, "rk4")
     assert "michaud" in act.structure_key()

@@ -18,11 +18,15 @@ FIXTURE = json.loads((Path(__file__).with_name("normalised_studies.json")).read_
 
 
 def _new_keys_at_default(new: dict, old: dict) -> dict:
-    """``new`` without the keys the old schema did not have, each checked to be at its class's
-    default (a setting added since reads every old study as before)."""
+    """``new`` without the keys (and tables) the old schema did not have, each checked to be at its
+    class's default (a setting added since reads every old study as before)."""
     tables = key_tables()
     out = {}
     for section, values in new.items():
+        if section in tables and section not in old:  # a table added since ([actuators]): every key at its default
+            for key, value in values.items():
+                assert value == tables[section][key].default, f"{section}.{key} = {value!r} in a study that did not set it"
+            continue
         if not isinstance(values, dict) or section not in old or section not in tables:
             out[section] = values
             continue

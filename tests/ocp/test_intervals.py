@@ -48,7 +48,7 @@ def _random_point(problem: Problem, rng: np.random.Generator) -> tuple[np.ndarra
     around the actuators' (a half's parameters differ from its neighbour's)."""
     A = problem.actuators
     m = rng.uniform(0.0, 1.0, A.n_states)
-    u = np.concatenate([rng.uniform(0, 1, A.nv) * A.tau_plus_limits, rng.uniform(0, 1, A.nv) * A.tau_minus_limits])
+    u = np.concatenate([rng.uniform(0, 1, A.n_actuated) * A.tau_plus_limits, rng.uniform(0, 1, A.n_actuated) * A.tau_minus_limits])
     p = A.param_vector() * rng.uniform(0.5, 1.5, A.n_params)
     return m, u, p
 
