@@ -30,18 +30,17 @@ The symbolic methods accept CasADi SX, MX or DM and numpy arrays, and return Cas
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Protocol, Union
 
 import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
-from fatigue_pin.core.settings import check_fields, is_strs, setting
 from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.ocp.actuation import COUPLINGS, Actuation
+from fatigue_pin.ocp.halves import ActuatorHalf, FatigueGroup
 from fatigue_pin.fatigue.models import FatigueParams
 from fatigue_pin.core.text import shown
 
@@ -53,105 +52,10 @@ Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
 ParamsSpec = Union[FatigueModel, Mapping[str, Union[FatigueModel, tuple[FatigueModel, FatigueModel]]]]
 
 
-#: How the torque of a half and its fatigue are coupled (docs/model.md, "Couplings"):
-#: ``tl+mf<=1``: the torque is the control, fatigue is integrated from its target load TL, and
-#: ``0 <= TL + m_fatigued <= 1`` at every node (the paper's); ``observed``: the same without that
-#: row (fatigue integrated, no limit on the torque); ``active``: the control sets TL only, and the
-#: torque the half delivers is ``m_active * limit`` (the torque is driven through the fatigue).
-COUPLINGS = ("tl+mf<=1", "observed", "active")
-
-
-@dataclass(frozen=True)
-class Actuation:
-    """The ``[actuators]`` table of a study: which joints are passive and how the torque and the
-    fatigue are coupled.
-
-    Attributes:
-        passive: joints without an actuator (no halves, no fatigue states, torque 0); a joint
-            whose URDF effort limit is 0 is passive too, named here or not.
-        coupling: one of :data:`COUPLINGS` (docs/model.md).
-    """
-
-    passive: tuple[str, ...] = setting((), "a list of joint names", is_strs)
-    coupling: str = setting("tl+mf<=1", f"one of {list(COUPLINGS)}", lambda v: v in COUPLINGS)
-
-    def __post_init__(self) -> None:
-        check_fields(self)
-        object.__setattr__(self, "passive", tuple(self.passive))
-
-
 class _HasTorqueLimits(Protocol):
     joint_names: tuple[str, ...]
     tau_lower: np.ndarray
     tau_upper: np.ndarray
-
-
-@dataclass(frozen=True)
-class FatigueGroup:
-    """Actuator halves whose fatigue models have the same equations
-    (:meth:`SignedTorqueActuators.fatigue_groups`).
-
-    Attributes:
-        label: the model's kind (``xia``; runs of other characters than letters and digits as one
-            ``_``), with ``_2``, ``_3``, ... for further groups of the same kind (other options,
-            e.g. Xia's ``rest_load``).
-        model: the model of the group's first half (its equations are every half's).
-        halves: indices of the halves, increasing.
-        state_rows: rows of their states in the fatigue state vector, half after half (each
-            half's states in its model's order), length ``len(halves) * model.n_states()``.
-        param_rows: entries of their parameters in the parameter vector, half after half.
-    """
-
-    label: str
-    model: FatigueModel
-    halves: tuple[int, ...]
-    state_rows: tuple[int, ...]
-    param_rows: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class ActuatorHalf:
-    """One half of a signed torque actuator.
-
-    Attributes:
-        joint: name of the joint it drives.
-        sign: +1 for the flexion half (torque >= 0), -1 for the extension half (torque <= 0).
-        tau_limit: magnitude of its torque limit (N m, or N for a prismatic joint), > 0.
-        params: its fatigue model with its parameter values (any :class:`FatigueModel`).
-    """
-
-    joint: str
-    sign: int
-    tau_limit: float
-    params: FatigueModel
-
-    def __post_init__(self) -> None:
-        if self.sign not in (1, -1) or isinstance(self.sign, bool):
-            raise ParameterError(f"ActuatorHalf({self.joint!r}).sign = {shown(self.sign)}: expected +1 or -1")
-        lim = float(self.tau_limit)
-        if not math.isfinite(lim) or lim <= 0.0:
-            raise ParameterError(
-                f"ActuatorHalf({self.joint!r}, sign {self.sign:+d}).tau_limit = {shown(self.tau_limit)}: "
-                "expected a finite torque magnitude > 0 (N m)"
-            )
-        object.__setattr__(self, "tau_limit", lim)
-        if not isinstance(self.params, FatigueModel):
-            raise ParameterError(f"ActuatorHalf({self.joint!r}).params = {self.params!r}: expected a fatigue model (FatigueModel)")
-
-    @property
-    def name(self) -> str:
-        """``<joint>_plus`` or ``<joint>_minus``."""
-        return f"{self.joint}_{'plus' if self.sign > 0 else 'minus'}"
-
-    @property
-    def signed_limit(self) -> float:
-        """The torque at TL = 1: ``+tau_limit`` or ``-tau_limit`` (N m)."""
-        return self.sign * self.tau_limit
-
-    @property
-    def tau_bounds(self) -> tuple[float, float]:
-        """``(lower, upper)`` torque bounds of this half (N m): ``(0, tau_limit)`` or ``(-tau_limit, 0)``."""
-        return (0.0, self.tau_limit) if self.sign > 0 else (-self.tau_limit, 0.0)
 
 
 def _column(x: Expr, n: int, what: str) -> Expr:

@@ -227,7 +227,8 @@ class IntervalFunctions:
                         call: Callable[..., ca.MX] | None = None) -> ca.MX:
         """(q, qdot) after every interval, (nq + nv, K), from y (nq + nv, K), fatigue states m
         (n_states, K), controls u (nu, K), fatigue parameters p (n_params, 1) and, if given, the
-        joint torques T (nv, K) (else the actuators' :meth:`joint_torque` of u). ``call(f, n,
+        joint torques T (nv, K) (else the actuators' :meth:`joint_torque` of u; under the
+        ``active`` coupling T is not used: the torque follows m within the interval). ``call(f, n,
         *args)`` maps ``f`` over ``n`` columns (default ``f.map(n)(*args)``)."""
         call = call or (lambda f, n, *args: f.map(n)(*args))
         K = y.size2()

@@ -300,8 +300,7 @@ class Ocp:
 
         if self.torque_is_variable:
             opti.subject_to(T == self.actuators.joint_torque(U))
-        opti.subject_to(X[:ny, 1:] == fn.rigid_body_step(X[:ny, :N], X[ny:, :N], U, P_fatigue,
-                                                         T if self.torque_is_variable else None, call=mapped))
+        opti.subject_to(X[:ny, 1:] == fn.rigid_body_step(X[:ny, :N], X[ny:, :N], U, P_fatigue, T, call=mapped))
         opti.subject_to(X[ny:, 1:] == self._fatigue_step(X[ny:, :N], U, P_fatigue, mapped))
         if self.actuators.coupling_rows:  # the `tl+mf<=1` coupling (docs/model.md)
             coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
