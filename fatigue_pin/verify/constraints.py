@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 
+from fatigue_pin.drivers.run import half_joint
 from fatigue_pin.verify.fatigue_rhs import numpy_rhs
 from fatigue_pin.verify.report import VerifyCheck, VerifyTolerances, worst
 from fatigue_pin.verify.stored import Stored
@@ -27,7 +28,7 @@ def finite_check(s: Stored) -> VerifyCheck:
         ("node", s.Y, [f"q {j}" for j in joints] + [f"qdot {j}" for j in joints]),
         ("node", s.M, s.state_labels),
         ("node", np.asarray(s.run.fatigued, dtype=float), [f"fatigued {h.name}" for h in s.halves]),
-        ("interval", s.run.half_torques(), [f"tau {h.name}" for h in s.halves]),
+        ("interval", s.run.half_torques(), [f"tau_{side} {joint}" for joint, side in map(half_joint, s.run.actuator_names)]),
     ]
     count, where = 0, ""
     for what, values, labels in parts:
