@@ -52,6 +52,7 @@ _API: dict[str, str] = {
     "read_endurance_csv": "fatigue_pin.fatigue.calibration",
     # optimal control problem
     "SignedTorqueActuators": "fatigue_pin.ocp.actuators",
+    "Actuation": "fatigue_pin.ocp.actuation",
     "Task": "fatigue_pin.ocp.task",
     "JointTarget": "fatigue_pin.ocp.task",
     "JointRange": "fatigue_pin.ocp.task",
