@@ -195,3 +195,45 @@ def test_a_passive_run_stores_the_halves_that_exist(pendulum, tmp_path):
     np.testing.assert_array_equal(back.tau_plus[:, 1], 0.0)
     np.testing.assert_allclose(back.target_loads(), A_halves / ocp.actuators.signed_limits)
     assert back.attrs["coupling"] == "tl+mf<=1"
+
+
+def test_a_passive_run_plots_replays_and_verifies(pendulum, tmp_path):
+    """The views ask the run for its halves: a figure per half that exists, the passive joint
+    drawn rested in the replay, and verify's checks (gaps against scipy) pass."""
+    from fatigue_pin.verify.verifier import verify_run
+    from fatigue_pin.viz.plots import plot_run
+    from fatigue_pin.viz.replay import build_animation
+
+    ocp, sol = _solve(pendulum, Actuation(passive=("pendulum",)), transcription=Transcription(substeps=20))
+    write_run(tmp_path / "r.h5", solution_to_run(ocp, sol, "full/passive"))
+    run = read_run(tmp_path / "r.h5", "full/passive")
+    assert plot_run(run, tmp_path / "figures")
+    scene = build_animation(run)
+    assert scene.n_frames == run.t.size
+    report = verify_run(run)
+    assert report.passed, report
+
+
+def test_verify_refuses_an_active_run_with_one_line(pendulum):
+    from fatigue_pin.core.errors import ResultFileError
+    from fatigue_pin.verify.verifier import verify_run
+
+    ocp, sol = _solve(pendulum, Actuation(passive=("pendulum",), coupling="active"))
+    with pytest.raises(ResultFileError, match=r"has the coupling 'active' .*verify checks runs of the couplings 'tl\+mf<=1' and 'observed'"):
+        verify_run(solution_to_run(ocp, sol, "full/active"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("coupling", ["tl+mf<=1", "active"])
+def test_the_compiled_library_solves_passive_and_active_as_uncompiled(pendulum, coupling, tmp_path):
+    """Library mode (compiled interval functions, derivative blocks; F_rb_active under
+    ``active``) gives the uncompiled optimum."""
+    actuation = Actuation(passive=("pendulum",), coupling=coupling)
+    _, reference = _solve(pendulum, actuation)
+    problem = Problem.build(pendulum, XIA, TASK, [torque(1.0)], actuation=actuation)
+    ocp = Ocp(problem, 1, TRANSCRIPTION, SolverOptions(tol=1e-10, cache_dir=tmp_path, compiler_flags=("-O1",)))
+    sol = ocp.solve()
+    assert ocp.library is not None and sol.success
+    assert ("F_rb_active" in ocp.library.names) == (coupling == "active")
+    assert sol.objective == pytest.approx(reference.objective, rel=1e-9)
+    np.testing.assert_allclose(sol.x, reference.x, atol=1e-8)
