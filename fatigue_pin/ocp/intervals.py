@@ -41,7 +41,10 @@ class IntervalFunctions:
 
     With piecewise-constant controls the rigid-body states (q, qdot) and the fatigue states m
     evolve independently over an interval, so RK4 on the whole state equals RK4 on each part;
-    integrating them separately keeps the derivatives (and the exact Hessian) small. For the same
+    integrating them separately keeps the derivatives (and the exact Hessian) small. (Under the
+    ``active`` coupling the torque is the halves' active fraction times their limit, so the rigid
+    body depends on m within the interval: :attr:`F_rb_active` integrates both; m still does not
+    depend on the rigid body, so :attr:`F_fatigue` is unchanged.) For the same
     reason the fatigue step is built for one half (the halves are independent: a half's states
     depend on its own torque and parameters only) and mapped over the halves.
 

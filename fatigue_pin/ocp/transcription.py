@@ -85,7 +85,8 @@ class Transcription:
             compile; kept for comparisons).
         torque_variable: the joint torque T = tau_plus + tau_minus (nv, N) is a decision variable
             of its own, tied by an equality row, and the rigid body takes T; ``False`` puts the
-            sum of the halves into the rigid body directly (how the paper's code does it).
+            sum of the halves into the rigid body directly (how the paper's code does it). Not
+            used under the ``active`` coupling (:attr:`Ocp.torque_is_variable`).
         target_rows: joint targets as equality rows in g instead of fixed variables (bounds
             lb = ub); a target at node 0 then duplicates the fixed initial state (how the paper's
             code does it; its bounds are widened to that state where it misses the target by more
