@@ -275,7 +275,7 @@ def _add_study_commands(sub: Any) -> None:
                                    "a study with [plant] or [mpc] tables runs as a closed loop (as `fatigue-pin mpc`)")
     p.add_argument("study", type=Path, help="study file (.toml), or an HDF5 result file whose run stores its study")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="change a key of the study, e.g. --set fatigue.S=0 --set horizon.max_cycles=5 (repeatable)")
+                   help="change a key of the study, e.g. --set fatigue.S=0 --set task.targets[1].tolerance=0.1 (array elements from 0; repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run (sliding) or search (max-cycles) stored in --out")
     p.add_argument("--run", default=None, metavar="NAME", help="with an HDF5 result file as study: the run whose study to use")
     _add_output_arguments(p)

@@ -14,6 +14,7 @@ their defaults and their checks come from the classes each table configures
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +26,7 @@ from fatigue_pin.core.text import plain, shown
 from fatigue_pin.io.schema import StudyError, build
 from fatigue_pin.io.tables import SECTIONS, TASK_ARRAYS, fill_placeholders, normalise, task_table, to_toml
 
-__all__ = ["Study", "StudyError", "StudyResult", "normalise", "parse_changes", "run_study", "to_toml"]
+__all__ = ["Study", "StudyError", "StudyResult", "key_steps", "normalise", "parse_changes", "run_study", "set_key", "to_toml"]
 
 
 def parse_changes(pairs: list[str]) -> dict[str, Any]:
@@ -41,6 +42,52 @@ def parse_changes(pairs: list[str]) -> dict[str, Any]:
         except tomllib.TOMLDecodeError:
             out[key.strip()] = text
     return out
+
+
+#: One step of a dotted key: a name, then any indices (``targets[1]``, ``q_init[0]``).
+_STEP = re.compile(r"([^.\[\]]+)((?:\[[^\[\]]*\])*)")
+
+
+def key_steps(dotted: str) -> list[str | int]:
+    """The steps of a dotted study key, names and array indices (from 0, as messages name the
+    elements): ``"task.targets[1].tolerance"`` -> ``["task", "targets", 1, "tolerance"]``."""
+    steps: list[str | int] = []
+    for part in dotted.split("."):
+        m = _STEP.fullmatch(part)
+        if m is None:
+            raise StudyError(f"study key {dotted!r} does not exist")
+        steps.append(m.group(1))
+        for index in re.findall(r"\[([^\[\]]*)\]", m.group(2)):
+            if not re.fullmatch(r"[0-9]+", index):
+                raise StudyError(f"study key {dotted!r}: index [{index}] is not an integer >= 0 (elements count from 0)")
+            steps.append(int(index))
+    return steps
+
+
+def set_key(data: dict[str, Any], dotted: str, value: Any) -> None:
+    """Set the dotted key ``dotted`` (:func:`key_steps`) of the study table ``data`` in place; every
+    table and element on the way must exist (the last name may be new: the study's check names
+    it if it is unknown)."""
+    steps = key_steps(dotted)
+    node: Any = data
+    where = ""  # the key walked so far, as messages name it
+    for i, step in enumerate(steps):
+        last = i == len(steps) - 1
+        if isinstance(step, int):
+            if not isinstance(node, list):
+                raise StudyError(f"study key {dotted!r}: {where} is not an array; it has no elements to index")
+            if step >= len(node):
+                count = {0: "no elements", 1: "1 element, [0]"}.get(len(node), f"{len(node)} elements, [0] to [{len(node) - 1}]")
+                raise StudyError(f"study key {dotted!r}: index [{step}] is out of range; {where} has {count}")
+            where += f"[{step}]"
+        else:
+            if not isinstance(node, dict) or (not last and step not in node):
+                raise StudyError(f"study key {dotted!r} does not exist")
+            where += f".{step}" if where else step
+        if last:
+            node[step] = value
+        else:
+            node = node[step]
 
 
 # -- the study object ------------------------------------------------------------------------------
@@ -106,16 +153,12 @@ class Study:
         return to_toml(self.data)
 
     def replace(self, changes: dict[str, Any]) -> Study:
-        """A copy with dotted keys changed, e.g. ``{"fatigue.S": 0.0, "horizon.kind": "full"}``."""
+        """A copy with dotted keys changed, e.g. ``{"fatigue.S": 0.0, "horizon.kind": "full"}``;
+        an element of an array is reached by its index from 0, as messages name it:
+        ``{"task.targets[1].tolerance": 0.1}`` (:func:`set_key`)."""
         data = plain(self.data)  # a copy
         for dotted, value in changes.items():
-            parts = dotted.split(".")
-            node = data
-            for p in parts[:-1]:
-                if not isinstance(node, dict) or p not in node:
-                    raise StudyError(f"study key {dotted!r} does not exist")
-                node = node[p]
-            node[parts[-1]] = value
+            set_key(data, dotted, value)
         return Study.from_dict(data)
 
     @property
