@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -95,16 +95,25 @@ def set_key(data: dict[str, Any], dotted: str, value: Any) -> None:
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study (the normalised table of a study file)."""
+    """A validated study (the normalised table of a study file).
+
+    Attributes:
+        data: the normalised table (every default filled in).
+        given: the dotted keys of the tables its source set before the defaults were filled in
+            (``"solver"``, ``"solver.mu_init"``, ...; a study read from a result file stored
+            every key), and those :meth:`replace` changed. Not part of the study's value: two
+            studies of the same data are equal.
+    """
 
     data: dict
+    given: frozenset[str] = field(default=frozenset(), compare=False, repr=False)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Study:
         """A study from a table (validated, every default filled). The one place values enter a
         study: numpy scalars and arrays become plain Python numbers and lists here, so that the
         study, its TOML and its job id are the same whichever type the caller passed."""
-        return cls(normalise(plain(data)))
+        return cls(normalise(plain(data)), _given_keys(data))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "study") -> Study:
@@ -159,7 +168,17 @@ class Study:
         data = plain(self.data)  # a copy
         for dotted, value in changes.items():
             set_key(data, dotted, value)
-        return Study.from_dict(data)
+        changed = {".".join(dotted.split(".")[:n]) for dotted in changes for n in range(1, dotted.count(".") + 2)}
+        return Study(normalise(plain(data)), self.given | changed | _given_keys(plain(changes)))
+
+    def solver_defaults(self) -> str:
+        """One line naming the settings in force that differ from IPOPT's defaults and that the
+        study does not set (:func:`~fatigue_pin.ocp.solver.departures_in_force`), or ""."""
+        from fatigue_pin.ocp.ipopt_defaults import departures_in_force, departures_line
+
+        given = {key.split(".", 1)[1] for key in self.given if key.startswith("solver.")}
+        warm = self.horizon["kind"] == "sliding" and bool(self.horizon.get("warm_start"))  # only windows warm-start
+        return departures_line(departures_in_force(self.solver(), given, warm_start=warm))
 
     @property
     def name(self) -> str:
@@ -246,6 +265,17 @@ class Study:
     def horizon_settings(self):
         """The :class:`~fatigue_pin.drivers.horizon.Horizon` of ``[horizon]``."""
         return build(SECTIONS["horizon"], self.data["horizon"], "horizon")
+
+
+def _given_keys(table: Any, prefix: str = "") -> frozenset[str]:
+    """The dotted keys of ``table`` and of its tables within (not into arrays)."""
+    if not isinstance(table, dict):
+        return frozenset()
+    keys: set[str] = set()
+    for k, v in table.items():
+        keys.add(f"{prefix}{k}")
+        keys |= _given_keys(v, f"{prefix}{k}.")
+    return frozenset(keys)
 
 
 def _fatigue_model(table: dict[str, Any], parent: dict[str, Any] | None):
@@ -389,7 +419,9 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
 
     ``progress`` is a :class:`~fatigue_pin.core.progress.Reporter` or a line callback (default
     quiet); ``resume`` continues the sliding run or the search stored in ``out``; ``cache_dir``:
-    where compiled code is kept. Returns a :class:`StudyResult`, the same type for every kind.
+    where compiled code is kept. Before the solve, ``progress`` gets one line naming the solver
+    settings in force that are not IPOPT's defaults and that the study does not set
+    (:meth:`Study.solver_defaults`). Returns a :class:`StudyResult`, the same type for every kind.
     """
     from fatigue_pin.core.progress import as_reporter
 
@@ -407,4 +439,7 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     horizon = study.horizon_settings()
     job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
                ResultFile(out) if out is not None else None, name, resume, as_reporter(progress))
+    defaults = study.solver_defaults()  # the study is valid: say which settings IPOPT would not have chosen
+    if defaults:
+        job.say(defaults)
     return _RUNNERS[horizon.kind](job)
