@@ -185,12 +185,33 @@ class Problem:
             )
         self.task.check(self.model)
         self.task.check_states(self.layout.state_names)
+        self._check_cost_names()
         if self.x_init is not None:
             x = np.asarray(self.x_init, dtype=float).reshape(-1)
             if x.size != self.layout.nx:
                 raise ParameterError(f"x_init has {x.size} entries; expected nx = {self.layout.nx}")
             self._check_x_init(x)
             object.__setattr__(self, "x_init", x)
+
+    def _check_cost_names(self) -> None:
+        """Refuse a built-in cost term whose options name a joint, a state or a frame the problem
+        does not have (before anything is built)."""
+        from fatigue_pin.core.errors import ModelError
+        from fatigue_pin.robot.kinematics import frame_id
+
+        states, joints = self.layout.state_names, self.model.joint_names
+        for t in self.costs:
+            for j in t.options.get("joints", []):
+                if j not in joints:
+                    raise ParameterError(f"cost term {t.name!r}: joint {j!r} is not in model {self.model.name!r}; its joints are {list(joints)}")
+            for s in t.options.get("states", []):
+                if s not in states:
+                    raise ParameterError(f"cost term {t.name!r}: state {s!r} is not a state of the problem; its states are {list(states)}")
+            if t.kind == "frame":
+                try:
+                    frame_id(self.model.pin_model, t.options["frame"])
+                except ModelError as exc:
+                    raise ParameterError(f"cost term {t.name!r}: {exc}") from None
 
     def _check_x_init(self, x: np.ndarray) -> None:
         """Refuse an initial state with q or qdot outside the model's bounds, q off a target at

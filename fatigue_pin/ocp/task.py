@@ -610,13 +610,13 @@ class Task:
                 j = model.joint_names.index(item.joint)
                 lo, hi = model.q_lower[j], model.q_upper[j]
                 if isinstance(item, JointTarget):
-                    where = "" if item.at == 0.0 else f" at {'the end' if item.at == END else f'phase {item.at:g}'}"
+                    where = f" (at {'the end' if item.at == END else f'phase {item.at:g}'})"
                     if item.value is not None and not (lo <= item.value <= hi):
-                        raise TaskError(f"task target {shown(item.value)}{where} of joint {item.joint!r} is outside its range [{lo}, {hi}]")
+                        raise TaskError(f"task target {shown(item.value)} of joint {item.joint!r} is outside its range [{lo}, {hi}]{where}")
                     vlo, vhi = model.v_lower[j], model.v_upper[j]
                     if item.velocity is not None and not (vlo <= item.velocity <= vhi):
-                        raise TaskError(f"task velocity target {shown(item.velocity)}{where} of joint {item.joint!r} is outside its "
-                                        f"velocity bounds [{vlo}, {vhi}]")
+                        raise TaskError(f"task velocity target {shown(item.velocity)} of joint {item.joint!r} is outside its "
+                                        f"velocity bounds [{vlo}, {vhi}]{where}")
                 elif item.upper < lo or item.lower > hi:
                     raise TaskError(f"task range {shown((item.lower, item.upper))} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
         q = None if self.given_start else self.initial_configuration(model)  # given_start: no posture to check
