@@ -691,6 +691,9 @@ class Task:
                     continue
                 ats, vals = ats + [ats[0] + 1.0], vals + [vals[0]]
             else:
+                # the first phase starts at q0, each later one where the previous ended
+                later = np.floor(t / T - 1e-9) >= 1
+                start = np.where(later, vals[-1], float(q0[j])) if ats[0] > 0.0 else None
                 if ats[0] > 0.0:
                     ats, vals = [0.0] + ats, [float(q0[j])] + vals
                 if ats[-1] < 1.0:
@@ -706,7 +709,9 @@ class Task:
                 if span <= 0:
                     continue
                 s = (ph[sel] - ats[k]) * T / span  # 0..1 within the segment
-                a, b = vals[k], vals[k + 1]
+                # a non-cyclic phase's first segment starts where the phase starts
+                a = start[sel] if not self.cyclic and k == 0 and start is not None else vals[k]
+                b = vals[k + 1]
                 w = math.pi / span
                 q[sel, j] = a + (b - a) * 0.5 * (1 - np.cos(math.pi * s))
                 qd[sel, j] = (b - a) * 0.5 * w * np.sin(math.pi * s)

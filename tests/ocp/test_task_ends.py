@@ -169,3 +169,17 @@ def test_a_sliding_horizon_over_repeated_phases_meets_every_phase_end(pendulum):
     ends = [10, 20, 30]
     np.testing.assert_allclose(run.q[ends, 1], 3.14, atol=1e-6)
     np.testing.assert_allclose(run.qdot[ends], 0.0, atol=1e-6)
+
+
+def test_the_reference_of_a_non_cyclic_task_goes_from_the_start_to_the_end_target(pendulum):
+    """The guesses' reference motion: from q_init to the end target in the first phase, then from
+    where each phase starts (the previous end) to its end; its velocity is the derivative of its
+    position (central differences)."""
+    task = swing_up(pendulum, JointTarget("pendulum", 3.14, "end"), n=10).task
+    t = np.linspace(0.0, 2.0, 401)
+    q, qd, _ = task.reference_trajectory(pendulum, t, np.array([0.0, 0.5]))
+    assert q[0, 1] == pytest.approx(0.5) and q[200, 1] == pytest.approx(3.14) and q[-1, 1] == pytest.approx(3.14)
+    np.testing.assert_allclose(q[200:, 1], 3.14, atol=1e-12)  # the second phase starts and ends at the target
+    np.testing.assert_allclose(q[:, 0], 0.0)  # a joint without targets stays at q0
+    fd = (q[2:200, 1] - q[:198, 1]) / (t[2] - t[0])
+    np.testing.assert_allclose(qd[1:199, 1], fd, atol=1e-3)
