@@ -203,7 +203,10 @@ class SlidingHorizon:
         self.sliding = sliding
         self.problem = problem
         self.solver = solver or SolverOptions()
-        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, self.sliding.end_tolerance)
+        # a cyclic task's windows end in a box around their start state; a non-cyclic task's windows end
+        # at the targets of their phases' ends (no box)
+        end_box = self.sliding.end_tolerance if problem.task.cyclic else None
+        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box)
         self.model = problem.model
         self.study = study
         self.labels = dict(labels or {})

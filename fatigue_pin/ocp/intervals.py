@@ -57,7 +57,8 @@ class IntervalFunctions:
         fatigue_steps: per group, ``F_fatigue_<label>(m_h, TL_h, p_h) -> m_h_next``: the RK4 of one
             half over one interval (the library compiles these, not F_fatigue).
         coupling: ``coupling(x, u) -> TL + m_fatigued`` of every half.
-        terms: cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_terms,)``.
+        terms: running cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_running,)``.
+        terminal: terminal cost terms on an end state, ``terminal(x) -> (n_terminal,)``, or None.
     """
 
     def __init__(self, problem: Problem, transcription: Transcription, fatigue_calls: bool = False) -> None:
@@ -124,9 +125,12 @@ class IntervalFunctions:
         u_prev = ca.SX.sym("u_prev", nu)
         self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(x[layout.m], u[:nv], u[nv:])], ["x", "u"], ["TL_plus_mf"])
         v = IntervalVariables(x, u, u_prev, layout, model, actuators)
-        integrands = [term.expression(v) for term in problem.costs]
+        integrands = [term.expression(v) for term in problem.costs if not term.terminal]
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
         self.terms = ca.Function("terms", [x, u, u_prev], [terms], ["x", "u", "u_prev"], ["terms"])
+        ends = [term.expression(v) for term in problem.costs if term.terminal]
+        #: the terminal cost terms on one end state, ``terminal(x) -> (n_terminal,)`` (not times dt), or None
+        self.terminal = ca.Function("terminal", [x], [ca.vertcat(*ends)], ["x"], ["terminal"]) if ends else None
 
     def analytical_rb_jacobian(self) -> ca.Function | None:
         """``jblk_F_rb(w) -> (y_next, J)`` with w = (y, tau) (18 rows for nv = 6): the RK4 of
