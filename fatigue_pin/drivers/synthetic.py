@@ -22,7 +22,7 @@ _LIMITS = np.array([50.0, -50.0, 50.0, -50.0])
 
 def synthetic_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10, windows: int | None = None,
                   seed: int = 0, mf_end: float = 0.3, urdf: str = "<robot name='x'/>",
-                  attrs: dict[str, Any] | None = None) -> RunResult:
+                  attrs: dict[str, Any] | None = None, joint_kinds: tuple[str, str] = ("revolute", "revolute")) -> RunResult:
     """A run of ``cycles`` cycles of ``n`` intervals (1 s each) on two joints and four halves.
 
     Args:
@@ -34,6 +34,7 @@ def synthetic_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10, w
         urdf: the URDF text stored with the run.
         attrs: attributes added to (or replacing) the run's own (horizon, cost, S, converged,
             n_cycles, tau_limits).
+        joint_kinds: the kinds of its two joints (``revolute``, ``prismatic``), which give their units.
     """
     nodes = cycles * n + 1
     rng = np.random.default_rng(seed)
@@ -56,6 +57,7 @@ def synthetic_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10, w
         torque_limits=torque_limits_at_cycle_ends(mf, _LIMITS, n),
         fatigued=mf,
         joint_names=("shoulder", "elbow"),
+        joint_kinds=joint_kinds,
         actuator_names=("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus"),
         cost_terms=("posture", "torque_rate", "fatigue", "torque"),
         cycle_wall_time_s=np.ones(cycles),
