@@ -71,11 +71,14 @@ def test_info_of_a_revolute_model_speaks_of_torques(arm26):
 
 def test_task_messages_carry_the_joint_s_unit(pendulum):
     task = Task(1.0, 10, (JointTarget("slider", 6.0, 0.0),))
-    with pytest.raises(TaskError, match=r"target 6.0 of joint 'slider' is outside its range \[-1.0, 5.0\] m$"):
+    with pytest.raises(TaskError, match=r"target 6.0 of joint 'slider' is outside its range \[-1.0, 5.0\] m( \(at phase 0\))?$"):
         task.check(pendulum)
     task = Task(1.0, 10, (JointRange("pendulum", 7.0, 8.0),))
     with pytest.raises(TaskError, match=r"range .7.0, 8.0. of joint 'pendulum' does not meet its range \[.*\] rad$"):
         task.check(pendulum)
     task = Task(1.0, 10, (JointTarget("slider", 0.5, 0.0),), q_init=(0.2, 0.0))
     with pytest.raises(TaskError, match=r"its target at phase 0 is 0.5 \(\+- 0\) m; expected"):
+        task.check(pendulum)
+    task = Task(1.0, 10, (JointTarget("slider", velocity=40.0, at="end"),))
+    with pytest.raises(TaskError, match=r"velocity target 40.0 of joint 'slider' is outside its velocity bounds \[.*\] m/s \(at the end\)$"):
         task.check(pendulum)
