@@ -49,6 +49,15 @@ def make_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10) -> Run
     return synthetic_run(name, cycles, n)
 
 
+def make_pendulum_run(name: str = "full/pendulum", cycles: int = 2, n: int = 10, urdf: str | None = None) -> RunResult:
+    """A synthetic run on urdf/pendulum.urdf's joints: the prismatic ``slider`` (m) and the revolute
+    ``pendulum`` (rad), that URDF's text stored with it unless ``urdf`` is given."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "urdf" / "pendulum.urdf").read_text() if urdf is None else urdf
+    return synthetic_run(name, cycles, n, urdf=text, joints=("slider", "pendulum"), joint_kinds=("prismatic", "revolute"))
+
+
 HALVES = ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")
 TERMS = ("shoulder_angle", "torque_rate", "fatigue", "torque")
 

@@ -530,7 +530,7 @@ class Task:
             if abs(float(q[j]) - t.value) > t.tolerance + slack:
                 raise TaskError(
                     f"task {what} = {[float(x) for x in q]} puts joint {t.joint!r} at {float(q[j])!r}, but its target at phase 0 "
-                    f"is {shown(t.value)} (+- {t.tolerance:g}); expected the start within the phase-0 target (or no {what}: "
+                    f"is {shown(t.value)} (+- {t.tolerance:g}) {model.joint_units(j).position}; expected the start within the phase-0 target (or no {what}: "
                     "it then starts at its targets)"
                 )
 
@@ -612,13 +612,13 @@ class Task:
                 if isinstance(item, JointTarget):
                     where = f" (at {'the end' if item.at == END else f'phase {item.at:g}'})"
                     if item.value is not None and not (lo <= item.value <= hi):
-                        raise TaskError(f"task target {shown(item.value)} of joint {item.joint!r} is outside its range [{lo}, {hi}]{where}")
+                        raise TaskError(f"task target {shown(item.value)} of joint {item.joint!r} is outside its range [{lo}, {hi}] {model.joint_units(j).position}{where}")
                     vlo, vhi = model.v_lower[j], model.v_upper[j]
                     if item.velocity is not None and not (vlo <= item.velocity <= vhi):
                         raise TaskError(f"task velocity target {shown(item.velocity)} of joint {item.joint!r} is outside its "
-                                        f"velocity bounds [{vlo}, {vhi}]{where}")
+                                        f"velocity bounds [{vlo}, {vhi}] {model.joint_units(j).velocity}{where}")
                 elif item.upper < lo or item.lower > hi:
-                    raise TaskError(f"task range {shown((item.lower, item.upper))} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
+                    raise TaskError(f"task range {shown((item.lower, item.upper))} of joint {item.joint!r} does not meet its range [{lo}, {hi}] {model.joint_units(j).position}")
         q = None if self.given_start else self.initial_configuration(model)  # given_start: no posture to check
         if q is not None:
             bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
