@@ -49,6 +49,15 @@ def make_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10) -> Run
     return synthetic_run(name, cycles, n)
 
 
+def make_pendulum_run(name: str = "full/pendulum", cycles: int = 2, n: int = 10, urdf: str | None = None) -> RunResult:
+    """A synthetic run on urdf/pendulum.urdf's joints: the prismatic ``slider`` (m) and the revolute
+    ``pendulum`` (rad), that URDF's text stored with it unless ``urdf`` is given."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "urdf" / "pendulum.urdf").read_text() if urdf is None else urdf
+    return synthetic_run(name, cycles, n, urdf=text, joints=("slider", "pendulum"), joint_kinds=("prismatic", "revolute"))
+
+
 HALVES = ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")
 TERMS = ("shoulder_angle", "torque_rate", "fatigue", "torque")
 
@@ -117,3 +126,26 @@ def small_mpc_study(tables: str = "", seed: int | None = None, max_cycles: int =
     study = small_curl("sliding", max_cycles=max_cycles)
     top = "" if seed is None else f"seed = {seed}\n"
     return f"{top}{study.to_toml()}\n{tables}\n"
+
+
+@pytest.fixture(scope="session")
+def pendulum():
+    """The cart-pendulum of urdf/pendulum.urdf (prismatic ``slider``, revolute ``pendulum``)."""
+    from fatigue_pin.robot.model import bundled_urdf
+
+    return load_model(bundled_urdf("pendulum"))
+
+
+def swing_up(model, *items, costs=None, n: int = 10, cycles: int = 1, **task):
+    """The pendulum's swing-up as a non-cyclic problem: ``n`` intervals of 1 / n s per phase, the
+    given task items (default: slider and pendulum at rest at (0, pi - 0.0016) at the end), Xia's
+    model on every half, the torque cost; a Problem."""
+    from fatigue_pin.fatigue.models import fatigue_model
+    from fatigue_pin.ocp.costs import torque
+    from fatigue_pin.ocp.problem import Problem
+    from fatigue_pin.ocp.task import JointTarget, Task
+
+    items = items or (JointTarget("slider", 0.0, "end", velocity=0.0), JointTarget("pendulum", 3.14, "end", velocity=0.0))
+    task.setdefault("q_init", (0.0, 0.0))
+    return Problem.build(model, fatigue_model("xia", LD=100.0, LR=100.0, F=5.0, R=10.0), Task(1.0, n, items, **task),
+                         costs if costs is not None else [torque(1.0)])

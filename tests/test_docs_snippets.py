@@ -53,6 +53,7 @@ PYTHON: dict[tuple[str, int], dict] = {
     ("mpc.md", 0): {"subs": [('changes={"mpc.estimator": "open-loop"}', f'changes={{"mpc.estimator": "open-loop", **{_SMALL_PY}}}')]},
     ("replay.md", 0): {},   # results.h5 is made by the fixture
     ("verify.md", 0): {},
+    ("results.md", 0): {},  # results/forward/forward_studies.h5 is made by the fixture
     ("studies.md", 0): {"prelude": "from dataclasses import dataclass\nfrom fatigue_pin.core.settings import is_number, setting\n"
                                    "@dataclass(frozen=True)\nclass Example:\n", "indent": True},
 }
@@ -63,7 +64,6 @@ NOT_RUN: dict[tuple[str, str], str] = {
         "needs a SLURM cluster (partition compute, interface ib0)",
     ("sweeps.md", "fatigue-pin sweep SWEEP.toml --out DIR --scheduler tcp://127.0.0.1:8786"):
         "needs a running dask scheduler at that address",
-    ("results.md", "import h5py"): "reads the output of `fatigue-pin forward` (README.md), which this module does not share between pages yet",
 }
 
 
@@ -132,7 +132,9 @@ def _cli(args: list[str], cwd: Path, timeout: float = 300) -> subprocess.Complet
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory) -> Path:
     """A folder with ``studies/`` and the files the pages take as given: ``results.h5`` with the
-    runs ``full/fatigue-torque_S10`` and ``sliding/fatigue-torque_S10`` (small curls)."""
+    runs ``full/fatigue-torque_S10`` and ``sliding/fatigue-torque_S10`` (small curls), and the
+    forward studies' file ``results/forward/forward_studies.h5`` of ``fatigue-pin forward
+    --out results/forward`` (README.md), on a short grid (6 s, study 2 at S = 10 only)."""
     tmp = tmp_path_factory.mktemp("docs")
     (tmp / "studies").symlink_to(ROOT / "studies")
     for kind in ("full", "sliding"):
@@ -143,7 +145,11 @@ def folder(tmp_path_factory) -> Path:
     r = _cli(["run", "studies/curl_sliding_fatigue-torque_paper.toml", "--out", "results/demo/sliding.h5", *SMALL], tmp)
     assert r.returncode == 0, r.stderr
     from fatigue_pin.io.study import Study
+    from fatigue_pin.paper.forward import ForwardStudyConfig, compute_forward_studies, write_h5
 
+    (tmp / "results" / "forward").mkdir()
+    forward = compute_forward_studies(ForwardStudyConfig(t_end=6.0, n_eval=601, study2_S=(10.0,)), progress=None)
+    write_h5(forward, tmp / "results" / "forward" / "forward_studies.h5")
     base = Study.from_file(ROOT / "studies" / "curl_full_fatigue-torque_paper.toml").replace({**SMALL_KEYS, "horizon.cycles": 1})
     (tmp / "small_base.toml").write_text(base.to_toml())
     (tmp / "small_sweep.toml").write_text('base = "small_base.toml"\n[grid]\n"fatigue.S" = [0.0, 10.0]\n')

@@ -275,7 +275,7 @@ def _add_study_commands(sub: Any) -> None:
                                    "a study with [plant] or [mpc] tables runs as a closed loop (as `fatigue-pin mpc`)")
     p.add_argument("study", type=Path, help="study file (.toml), or an HDF5 result file whose run stores its study")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="change a key of the study, e.g. --set fatigue.S=0 --set horizon.max_cycles=5 (repeatable)")
+                   help="change a key of the study, e.g. --set fatigue.S=0 --set task.targets[1].tolerance=0.1 (array elements from 0; repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run (sliding) or search (max-cycles) stored in --out")
     p.add_argument("--run", default=None, metavar="NAME", help="with an HDF5 result file as study: the run whose study to use")
     _add_output_arguments(p)
@@ -378,7 +378,7 @@ def _add_verify_command(sub: Any) -> None:
     option(p, "--atol", type=float, default_from=(run, "atol"), help="solve_ivp atol")
     option(p, "--method", default_from=(run, "method"), choices=list(METHODS),
             help="solve_ivp method (the paper's single shooting: RK45 --rtol 1e-3 --atol 1e-6)")
-    p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad) and qdot (rad/s) (default {tol.gap:g})")
+    p.add_argument("--gap-tol", type=float, default=tol.gap, help=f"gap of q (rad or m) and qdot (rad/s or m/s) (default {tol.gap:g})")
     p.add_argument("--gap-fatigue-tol", type=float, default=tol.gap_fatigue, help=f"gap of the fatigue states (default {tol.gap_fatigue:g})")
     p.add_argument("--task-tol", type=float, default=tol.task, help=f"task targets, ranges, initial state (default {tol.task:g})")
     p.add_argument("--coupling-tol", type=float, default=tol.coupling, help=f"TL + mf outside [0, 1] (default {tol.coupling:g})")

@@ -148,7 +148,7 @@ def task_errors(problem: Problem, x: np.ndarray, n_cycles: int) -> np.ndarray:
     n = task.intervals_per_cycle
     N = n_cycles * n
     err = np.zeros(n_cycles)
-    checks = [(node, x[node, j], lo, hi) for node, j, lo, hi in joint_target_pairs(task, model, N)]
+    checks = [(node, x[node, j], lo, hi) for node, j, lo, hi in joint_target_pairs(task, model, N, L)]
     for sc in task.expression_constraints(model, L):
         if sc.at is None:
             continue
@@ -255,6 +255,9 @@ class ClosedLoop:
         self.guess = guess
         self.progress = progress
         task = problem.task
+        if not task.cyclic:
+            raise ParameterError("closed loop: the task is not cyclic (task.cyclic = false, or an item at \"end\"); the closed loop "
+                                 "re-plans cyclic tasks only: expected a cyclic task (or horizon kind full / sliding)")
         self.n = task.intervals_per_cycle
         self.H = self.sliding.window * self.n
         self.replan_every = self.mpc.replan_every or self.sliding.advance * self.n

@@ -162,7 +162,7 @@ def run_closed_loop(loop: ClosedLoop, store: RunStore | None = None, name: str =
     """Run ``loop``, storing the run in ``store`` after every re-plan; ``resume`` continues the
     run ``name`` stored there (same settings: its fingerprint must match). Returns the run."""
     rep = as_reporter(progress)
-    state = None
+    state, stored = None, None
     if resume and store is not None and name in store.runs():
         stored = store.read(name)
         if stored.attrs.get("fingerprint") != fingerprint(loop):
@@ -173,24 +173,38 @@ def run_closed_loop(loop: ClosedLoop, store: RunStore | None = None, name: str =
                                   f"({theirs.get(key)!r} stored, {mine.get(key)!r} now)")
         state = from_run(loop, stored)
         rep.line(f"resuming {name!r}: {len(state.replans)} re-plans done, node {state.node}")
-    build = loop.ocp.build_time_s
-    kept: list[RunResult] = [stored] if state is not None else []  # the run as last stored
+    checkpoints = _Checkpoints(loop, store, name, study, labels, stored)
     state = state or loop.initial_state()
-
-    def checkpoint(s: LoopState) -> None:
-        if store is not None:
-            run = to_run(loop, s, name, study, labels, build)
-            store.write(run)
-            kept[:] = [run]
-
     try:
-        state = loop.run(state, checkpoint, rep, stop_after)
+        state = loop.run(state, checkpoints, rep, stop_after)
     except Interrupted as exc:  # the last stored state, marked interrupted; --resume continues from it
-        if store is not None and kept and not kept[0].attrs.get("finished"):
-            kept[0].attrs.update(interrupted=signal_name(exc), finished=False, converged=False)
-            store.write(kept[0])
+        checkpoints.interrupted(signal_name(exc))
         raise
-    return to_run(loop, state, name, study, labels, build)
+    return to_run(loop, state, name, study, labels, checkpoints.build_time_s)
+
+
+class _Checkpoints:
+    """The checkpoint of :meth:`ClosedLoop.run`: the run written to ``store`` after every re-plan,
+    the last one written remembered (:attr:`last`), to be marked interrupted."""
+
+    def __init__(self, loop: ClosedLoop, store: RunStore | None, name: str, study: str, labels: dict[str, Any] | None,
+                 stored: RunResult | None) -> None:
+        self.loop, self.store, self.name, self.study, self.labels = loop, store, name, study, labels
+        self.build_time_s = loop.ocp.build_time_s
+        #: the run as last stored (a resumed run's: as it was read), or None
+        self.last = stored
+
+    def __call__(self, state: LoopState) -> None:
+        if self.store is not None:
+            self.last = to_run(self.loop, state, self.name, self.study, self.labels, self.build_time_s)
+            self.store.write(self.last)
+
+    def interrupted(self, signal: str) -> None:
+        """Store the run as last stored again, marked interrupted by ``signal`` (a finished run
+        stays as it is)."""
+        if self.store is not None and self.last is not None and not self.last.attrs.get("finished"):
+            self.last.attrs.update(interrupted=signal, finished=False, converged=False)
+            self.store.write(self.last)
 
 
 def estimation_error(run: RunResult) -> np.ndarray:

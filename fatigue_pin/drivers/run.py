@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError, ResultFileError
+from fatigue_pin.robot.units import JOINT_KINDS, JointUnits, units_of_kind
 
 if TYPE_CHECKING:
     from fatigue_pin.ocp.transcription import Ocp, OcpSolution
@@ -52,15 +53,18 @@ class RunResult:
         name: group name in the file.
         attrs: run attributes (see :data:`RUN_ATTRIBUTES`; more may be present).
         t: node times (s), (nodes,).
-        q, qdot: joint positions (rad) and velocities (rad/s), (nodes, nq).
-        tau_plus, tau_minus: actuator half torques (N m), (intervals, nv), a column per joint, 0
-            on passive joints (:meth:`half_torques`: the halves that exist).
+        q, qdot: joint positions (rad or m) and velocities (rad/s or m/s), (nodes, nq), each
+            column in its joint's units (:meth:`joint_units`).
+        tau_plus, tau_minus: actuator half torques (N m) or forces (N), (intervals, nv), a column
+            per joint, 0 on passive joints (:meth:`half_torques`: the halves that exist).
         fatigue: fatigue states by name (Xia: ``ma``, ``mr``, ``mf``), each (nodes, halves); NaN in
             the columns of halves whose model has no such state.
         cycle_costs: weighted cost terms per cycle, (cycles, len(cost_terms)).
         torque_limits: available torque (1 - mf) * tau_limit of every half at the end of each
-            cycle (N m, signed like the half), (cycles, halves).
+            cycle (N m or N, signed like the half), (cycles, halves).
         joint_names, actuator_names, cost_terms: labels of the columns.
+        joint_kinds: the kind of every joint of ``joint_names`` (``revolute``, ``prismatic``),
+            which gives its units (:meth:`joint_units`); empty: every joint revolute.
         cycle_wall_time_s: solve time attributed to each cycle (s), (cycles,).
         windows: sliding-horizon window table (structured, :data:`WINDOW_DTYPE`), or None.
         urdf: the model's URDF text (so the file reproduces itself), or "".
@@ -89,11 +93,30 @@ class RunResult:
     study: str = ""
     fatigued: np.ndarray | None = None
     extras: dict[str, np.ndarray] = field(default_factory=dict)
+    joint_kinds: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.fatigued is None:
             raise ResultFileError(f"run {self.name!r}: the fatigued fraction of every half (fatigued, (nodes, halves)) "
                                   "is required; the reader supplies it for files that predate it")
+        self.joint_kinds = tuple(self.joint_kinds) or ("revolute",) * len(self.joint_names)
+        if len(self.joint_kinds) != len(self.joint_names) or not set(self.joint_kinds) <= set(JOINT_KINDS):
+            raise ResultFileError(f"run {self.name!r}: joint kinds {list(self.joint_kinds)}: expected one of {list(JOINT_KINDS)} "
+                                  f"for each of its {len(self.joint_names)} joints {list(self.joint_names)}")
+
+    def joint_units(self, joint: int | str) -> JointUnits:
+        """The units of joint ``joint`` (its column in q, or its name): rad, rad/s, N m for a
+        revolute joint; m, m/s, N for a prismatic one (:class:`~fatigue_pin.robot.model.JointUnits`)."""
+        j = self.joint_names.index(joint) if isinstance(joint, str) and joint in self.joint_names else joint
+        if not isinstance(j, int) or not 0 <= j < len(self.joint_names):
+            raise ResultFileError(f"run {self.name!r}: joint {joint!r} is not one of its joints {list(self.joint_names)}")
+        return units_of_kind(self.joint_kinds[j])
+
+    def half_units(self, half: int | str) -> JointUnits:
+        """The units of the joint that actuator half ``half`` (its column, or its name
+        ``<joint>_plus`` / ``<joint>_minus``) drives."""
+        name = self.actuator_names[half] if isinstance(half, int) else half
+        return self.joint_units(name.rpartition("_")[0])
 
     def check_shapes(self) -> None:
         """Refuse a run whose arrays disagree (a damaged or hand-edited file): every array 2-D
@@ -409,6 +432,7 @@ def to_run_result(
         cycle_costs=cycle_costs,
         torque_limits=torque_limits_at_cycle_ends(fatigued, ocp.actuators.signed_limits, ocp.task.intervals_per_cycle),
         joint_names=ocp.model.joint_names,
+        joint_kinds=ocp.model.joint_kinds,
         actuator_names=ocp.actuators.half_names,
         cost_terms=ocp.cost_terms,
         cycle_wall_time_s=cycle_wall_time_s,

@@ -147,6 +147,8 @@ def ending(run: RunResult) -> str:
     if cap is not None and int(cap) > 0 and run.n_cycles >= int(cap):
         return f"stopped at the cap of {int(cap)} cycles (horizon.max_cycles), not by fatigue"
     return "finished"
+
+
 def stitched_nodes(task: Task, at: float | None, window: int, advance: int, first_cycles: Sequence[int]) -> list[int]:
     """Nodes of a stitched run where the windows put the task's phase ``at`` (every node for
     ``None``), in order.
@@ -201,7 +203,10 @@ class SlidingHorizon:
         self.sliding = sliding
         self.problem = problem
         self.solver = solver or SolverOptions()
-        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, self.sliding.end_tolerance)
+        # a cyclic task's windows end in a box around their start state; a non-cyclic task's windows end
+        # at the targets of their phases' ends (no box)
+        end_box = self.sliding.end_tolerance if problem.task.cyclic else None
+        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box)
         self.model = problem.model
         self.study = study
         self.labels = dict(labels or {})
@@ -399,24 +404,30 @@ class SlidingHorizon:
             bar.close()
             if state is None:
                 raise RuntimeError("no window was solved")
-            with deferred():
-                if state.done and work != name and store is not None:  # complete: now it replaces the old run
-                    store.write(self._run_result(state, name, ocp.build_time_s))
-                    store.delete(work)
+            self._complete(store, state, work, name)
         except Interrupted as exc:  # the windows kept so far stay, marked interrupted; --resume continues
             if store is not None and state is not None and not state.done:
                 with deferred():
                     store.write(self._run_result(state, work, ocp.build_time_s, interrupted=signal_name(exc)))
-            elif store is not None and state is not None and work != name:  # every window is done: complete it
-                with deferred():
-                    if work in store.runs():
-                        store.write(self._run_result(state, name, ocp.build_time_s))
-                        store.delete(work)
+            else:  # every window is done: complete it (unless the signal came once it was)
+                self._complete(store, state, work, name)
             raise
         result = self._run_result(state, name if state.done else work, ocp.build_time_s)
         rep.line(f"median real-time factor {result.attrs['median_real_time_factor']:.2f} "
                  f"(s of solving per s of motion advanced, {result.attrs['converged_windows']} converged windows)")
         return result
+
+    def _complete(self, store: RunStore | None, state: _State | None, work: str, name: str) -> None:
+        """A finished run kept under a working name (:meth:`_working_name`) replaces the run it is
+        to replace: it is written under ``name`` and the run in progress deleted, both or neither
+        (a signal waits). Nothing to do for a run not finished, kept under its own name, or
+        already completed (the signal came after this step)."""
+        if store is None or state is None or not state.done or work == name:
+            return
+        with deferred():
+            if work in store.runs():
+                store.write(self._run_result(state, name, self.ocp.build_time_s))
+                store.delete(work)
 
     def _window_line(self, index: int, first_cycle: int, sol: OcpSolution, limit: int | None, max_mf: float) -> str:
         """The progress line of a solved window."""

@@ -22,7 +22,8 @@ _LIMITS = np.array([50.0, -50.0, 50.0, -50.0])
 
 def synthetic_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10, windows: int | None = None,
                   seed: int = 0, mf_end: float = 0.3, urdf: str = "<robot name='x'/>",
-                  attrs: dict[str, Any] | None = None) -> RunResult:
+                  attrs: dict[str, Any] | None = None, joints: tuple[str, str] = ("shoulder", "elbow"),
+                  joint_kinds: tuple[str, str] = ("revolute", "revolute")) -> RunResult:
     """A run of ``cycles`` cycles of ``n`` intervals (1 s each) on two joints and four halves.
 
     Args:
@@ -34,6 +35,8 @@ def synthetic_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10, w
         urdf: the URDF text stored with the run.
         attrs: attributes added to (or replacing) the run's own (horizon, cost, S, converged,
             n_cycles, tau_limits).
+        joints: the names of its two joints (the halves are ``<joint>_plus``, ``<joint>_minus``).
+        joint_kinds: the kinds of its two joints (``revolute``, ``prismatic``), which give their units.
     """
     nodes = cycles * n + 1
     rng = np.random.default_rng(seed)
@@ -55,8 +58,9 @@ def synthetic_run(name: str = "full/torque_S10", cycles: int = 2, n: int = 10, w
         cycle_costs=rng.uniform(size=(cycles, 4)),
         torque_limits=torque_limits_at_cycle_ends(mf, _LIMITS, n),
         fatigued=mf,
-        joint_names=("shoulder", "elbow"),
-        actuator_names=("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus"),
+        joint_names=tuple(joints),
+        joint_kinds=joint_kinds,
+        actuator_names=tuple(f"{j}_{sign}" for j in joints for sign in ("plus", "minus")),
         cost_terms=("posture", "torque_rate", "fatigue", "torque"),
         cycle_wall_time_s=np.ones(cycles),
         windows=table,

@@ -8,16 +8,16 @@ Layout (``docs/results.md``)::
                                      study (the study's TOML text, when run from a study),
                                      urdf (the model's URDF text)
         t            (nodes,)              s
-        q, qdot      (nodes, nq)           rad, rad/s          attribute joints
-        tau_halves   (intervals, halves)   N m, the torque of every actuator half that exists
-                                           (two per actuated joint; none for a passive joint),
-                                           attribute actuators (layouts 1-2: tau_plus and
-                                           tau_minus, (intervals, nv), attribute joints)
+        q, qdot      (nodes, nq)           rad, rad/s or m, m/s attributes joints, units (one per
+                                           joint), and on q joint_kinds (revolute, prismatic)
+        tau_halves   (intervals, halves)   N m or N, every actuator half's (none for a passive joint),
+                                           attributes actuators, units (layouts 1-2: tau_plus, tau_minus)
         <state>      (nodes, halves)       1, one dataset per fatigue state the models declare
                                            (Xia: ma, mr, mf; group attribute fatigue_states lists
                                            them; NaN in the columns of halves without the state)
         cycle_costs  (cycles, terms)       weighted cost       attribute terms
-        torque_limits (cycles, halves)     N m, (1 - mf) * tau_limit at the end of each cycle
+        torque_limits (cycles, halves)     N m or N (attribute units), (1 - mf) * tau_limit at the
+                                           end of each cycle
         cycle_wall_time_s (cycles,)        s, solve time attributed to each kept cycle
         windows      (windows,) table      sliding horizon only: index, first_cycle, status,
                                            converged, iterations, wall_time_s, objective
@@ -51,7 +51,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fatigue_pin.core.errors import FatiguePinError, ResultFileError
+from fatigue_pin.core.errors import FatiguePinError, ModelError, ResultFileError
 from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
@@ -98,19 +98,22 @@ def _write_run(group: h5py.Group, run: RunResult) -> None:
     group.attrs["urdf"] = run.urdf
     group.attrs["study"] = run.study
     group.attrs["fatigue_states"] = list(run.fatigue)
-    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_halves": "N m",
-             "cycle_costs": "cost", "torque_limits": "N m", "cycle_wall_time_s": "s"}
-    arrays = ({name: getattr(run, name) for name in units if name != "tau_halves"} | {"tau_halves": run.half_torques()}
-              | dict(run.fatigue) | {"fatigued": run.fatigued})
+    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_halves": "N m", "cycle_costs": "cost", "torque_limits": "N m", "cycle_wall_time_s": "s"}
+    arrays = {n: getattr(run, n) for n in units if n != "tau_halves"} | {"tau_halves": run.half_torques()} | dict(run.fatigue) | {"fatigued": run.fatigued}
     units |= {name: "1" for name in run.fatigue} | {"fatigued": "1"}
     for name, unit in units.items():
         data = np.asarray(arrays[name], dtype=float)
         ds = group.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
         ds.attrs["unit"] = unit
-    for name in ("q", "qdot"):
+    joint_units = [run.joint_units(j) for j in range(len(run.joint_names))]
+    for name, unit_of in (("q", "position"), ("qdot", "velocity")):
         group[name].attrs["joints"] = list(run.joint_names)
+        _column_units(group[name], [getattr(u, unit_of) for u in joint_units])
+    group["q"].attrs["joint_kinds"] = list(run.joint_kinds)
     for name in (*run.fatigue, "fatigued", "torque_limits", "tau_halves"):
         group[name].attrs["actuators"] = list(run.actuator_names)
+    for name in ("torque_limits", "tau_halves"):
+        _column_units(group[name], [run.half_units(h).effort for h in range(len(run.actuator_names))])
     group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
     if run.windows is not None:
         group.create_dataset("windows", data=np.asarray(run.windows, dtype=WINDOW_DTYPE))
@@ -119,6 +122,32 @@ def _write_run(group: h5py.Group, run: RunResult) -> None:
         for name, value in run.extras.items():
             data = np.asarray(value)
             extras.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
+
+
+def _column_units(ds: h5py.Dataset, units: list[str]) -> None:
+    """The per-column ``units`` attribute of ``ds`` (one per joint or half), and its ``unit``: the
+    columns' common unit, or ``mixed`` when they differ."""
+    ds.attrs["units"] = units
+    ds.attrs["unit"] = units[0] if len(set(units)) == 1 else "mixed"
+
+
+def _joint_kinds(group: h5py.Group, joints: tuple[str, ...]) -> tuple[str, ...]:
+    """The kind of every joint of a stored run: the ``joint_kinds`` attribute of ``q``; for runs
+    written before it, from the stored URDF (joints matched by name), else every joint revolute
+    (all the models of those versions' studies but a hand-made URDF were)."""
+    if "joint_kinds" in group["q"].attrs:
+        return _str_list(group["q"].attrs["joint_kinds"])
+    urdf = _text(group.attrs.get("urdf", ""))
+    if urdf.strip():
+        from fatigue_pin.robot.model import joint_kinds_of_urdf
+
+        try:
+            kinds = joint_kinds_of_urdf(urdf)
+        except ModelError:
+            kinds = {}
+        if all(j in kinds for j in joints):
+            return tuple(kinds[j] for j in joints)
+    return ("revolute",) * len(joints)
 
 
 def _str_list(values: Any) -> tuple[str, ...]:
@@ -132,11 +161,9 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
     if missing:
         raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
     attrs = {k: _attr_value(v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
-    joints = _str_list(group["q"].attrs["joints"])
-    if "tau_halves" in group:
-        tau_plus, tau_minus = joint_columns(joints, _str_list(group["tau_halves"].attrs["actuators"]), group["tau_halves"][()])
-    else:
-        tau_plus, tau_minus = group["tau_plus"][()], group["tau_minus"][()]
+    joints, tau = _str_list(group["q"].attrs["joints"]), group.get("tau_halves")
+    tau_plus, tau_minus = ((group["tau_plus"][()], group["tau_minus"][()]) if tau is None
+                           else joint_columns(joints, _str_list(tau.attrs["actuators"]), tau[()]))
     run = RunResult(
         name=name,
         attrs=attrs,
@@ -149,6 +176,7 @@ def _read_run(group: h5py.Group, name: str) -> RunResult:
         cycle_costs=group["cycle_costs"][()],
         torque_limits=group["torque_limits"][()],
         joint_names=joints,
+        joint_kinds=_joint_kinds(group, joints),
         actuator_names=_str_list(group[states[0]].attrs["actuators"]),
         cost_terms=_str_list(group["cycle_costs"].attrs["terms"]),
         cycle_wall_time_s=group["cycle_wall_time_s"][()] if "cycle_wall_time_s" in group else np.zeros(0),

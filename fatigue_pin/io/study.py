@@ -14,8 +14,9 @@ their defaults and their checks come from the classes each table configures
 from __future__ import annotations
 
 import math
+import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ from fatigue_pin.core.text import plain, shown
 from fatigue_pin.io.schema import StudyError, build
 from fatigue_pin.io.tables import SECTIONS, TASK_ARRAYS, fill_placeholders, normalise, task_table, to_toml
 
-__all__ = ["Study", "StudyError", "StudyResult", "normalise", "parse_changes", "run_study", "to_toml"]
+__all__ = ["Study", "StudyError", "StudyResult", "key_steps", "normalise", "parse_changes", "run_study", "set_key", "to_toml"]
 
 
 def parse_changes(pairs: list[str]) -> dict[str, Any]:
@@ -43,21 +44,76 @@ def parse_changes(pairs: list[str]) -> dict[str, Any]:
     return out
 
 
+#: One step of a dotted key: a name, then any indices (``targets[1]``, ``q_init[0]``).
+_STEP = re.compile(r"([^.\[\]]+)((?:\[[^\[\]]*\])*)")
+
+
+def key_steps(dotted: str) -> list[str | int]:
+    """The steps of a dotted study key, names and array indices (from 0, as messages name the
+    elements): ``"task.targets[1].tolerance"`` -> ``["task", "targets", 1, "tolerance"]``."""
+    steps: list[str | int] = []
+    for part in dotted.split("."):
+        m = _STEP.fullmatch(part)
+        if m is None:
+            raise StudyError(f"study key {dotted!r} does not exist")
+        steps.append(m.group(1))
+        for index in re.findall(r"\[([^\[\]]*)\]", m.group(2)):
+            if not re.fullmatch(r"[0-9]+", index):
+                raise StudyError(f"study key {dotted!r}: index [{index}] is not an integer >= 0 (elements count from 0)")
+            steps.append(int(index))
+    return steps
+
+
+def set_key(data: dict[str, Any], dotted: str, value: Any) -> None:
+    """Set the dotted key ``dotted`` (:func:`key_steps`) of the study table ``data`` in place; every
+    table and element on the way must exist (the last name may be new: the study's check names
+    it if it is unknown)."""
+    steps = key_steps(dotted)
+    node: Any = data
+    where = ""  # the key walked so far, as messages name it
+    for i, step in enumerate(steps):
+        last = i == len(steps) - 1
+        if isinstance(step, int):
+            if not isinstance(node, list):
+                raise StudyError(f"study key {dotted!r}: {where} is not an array; it has no elements to index")
+            if step >= len(node):
+                count = {0: "no elements", 1: "1 element, [0]"}.get(len(node), f"{len(node)} elements, [0] to [{len(node) - 1}]")
+                raise StudyError(f"study key {dotted!r}: index [{step}] is out of range; {where} has {count}")
+            where += f"[{step}]"
+        else:
+            if not isinstance(node, dict) or (not last and step not in node):
+                raise StudyError(f"study key {dotted!r} does not exist")
+            where += f".{step}" if where else step
+        if last:
+            node[step] = value
+        else:
+            node = node[step]
+
+
 # -- the study object ------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class Study:
-    """A validated study (the normalised table of a study file)."""
+    """A validated study (the normalised table of a study file).
+
+    Attributes:
+        data: the normalised table (every default filled in).
+        given: the dotted keys of the tables its source set before the defaults were filled in
+            (``"solver"``, ``"solver.mu_init"``, ...; a study read from a result file stored
+            every key), and those :meth:`replace` changed. Not part of the study's value: two
+            studies of the same data are equal.
+    """
 
     data: dict
+    given: frozenset[str] = field(default=frozenset(), compare=False, repr=False)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Study:
         """A study from a table (validated, every default filled). The one place values enter a
         study: numpy scalars and arrays become plain Python numbers and lists here, so that the
         study, its TOML and its job id are the same whichever type the caller passed."""
-        return cls(normalise(plain(data)))
+        return cls(normalise(plain(data)), _given_keys(data))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "study") -> Study:
@@ -106,17 +162,23 @@ class Study:
         return to_toml(self.data)
 
     def replace(self, changes: dict[str, Any]) -> Study:
-        """A copy with dotted keys changed, e.g. ``{"fatigue.S": 0.0, "horizon.kind": "full"}``."""
+        """A copy with dotted keys changed, e.g. ``{"fatigue.S": 0.0, "horizon.kind": "full"}``;
+        an element of an array is reached by its index from 0, as messages name it:
+        ``{"task.targets[1].tolerance": 0.1}`` (:func:`set_key`)."""
         data = plain(self.data)  # a copy
         for dotted, value in changes.items():
-            parts = dotted.split(".")
-            node = data
-            for p in parts[:-1]:
-                if not isinstance(node, dict) or p not in node:
-                    raise StudyError(f"study key {dotted!r} does not exist")
-                node = node[p]
-            node[parts[-1]] = value
-        return Study.from_dict(data)
+            set_key(data, dotted, value)
+        changed = {".".join(dotted.split(".")[:n]) for dotted in changes for n in range(1, dotted.count(".") + 2)}
+        return Study(normalise(plain(data)), self.given | changed | _given_keys(plain(changes)))
+
+    def solver_defaults(self) -> str:
+        """One line naming the settings in force that differ from IPOPT's defaults and that the
+        study does not set (:func:`~fatigue_pin.ocp.solver.departures_in_force`), or ""."""
+        from fatigue_pin.ocp.ipopt_defaults import departures_in_force, departures_line
+
+        given = {key.split(".", 1)[1] for key in self.given if key.startswith("solver.")}
+        warm = self.horizon["kind"] == "sliding" and bool(self.horizon.get("warm_start"))  # only windows warm-start
+        return departures_line(departures_in_force(self.solver(), given, warm_start=warm))
 
     @property
     def name(self) -> str:
@@ -219,6 +281,17 @@ class Study:
     def horizon_settings(self):
         """The :class:`~fatigue_pin.drivers.horizon.Horizon` of ``[horizon]``."""
         return build(SECTIONS["horizon"], self.data["horizon"], "horizon")
+
+
+def _given_keys(table: Any, prefix: str = "") -> frozenset[str]:
+    """The dotted keys of ``table`` and of its tables within (not into arrays)."""
+    if not isinstance(table, dict):
+        return frozenset()
+    keys: set[str] = set()
+    for k, v in table.items():
+        keys.add(f"{prefix}{k}")
+        keys |= _given_keys(v, f"{prefix}{k}.")
+    return frozenset(keys)
 
 
 def _fatigue_model(table: dict[str, Any], parent: dict[str, Any] | None):
@@ -362,7 +435,9 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
 
     ``progress`` is a :class:`~fatigue_pin.core.progress.Reporter` or a line callback (default
     quiet); ``resume`` continues the sliding run or the search stored in ``out``; ``cache_dir``:
-    where compiled code is kept. Returns a :class:`StudyResult`, the same type for every kind.
+    where compiled code is kept. Before the solve, ``progress`` gets one line naming the solver
+    settings in force that are not IPOPT's defaults and that the study does not set
+    (:meth:`Study.solver_defaults`). Returns a :class:`StudyResult`, the same type for every kind.
     """
     from fatigue_pin.core.progress import as_reporter
 
@@ -380,4 +455,7 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
     horizon = study.horizon_settings()
     job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
                ResultFile(out) if out is not None else None, name, resume, as_reporter(progress))
+    defaults = study.solver_defaults()  # the study is valid: say which settings IPOPT would not have chosen
+    if defaults:
+        job.say(defaults)
     return _RUNNERS[horizon.kind](job)

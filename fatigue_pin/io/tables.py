@@ -17,7 +17,7 @@ from fatigue_pin.drivers.horizon import Horizon
 from fatigue_pin.io.schema import StudyError, build, fill, is_toml_number, read_table, table_keys
 from fatigue_pin.ocp.actuators import Actuation
 from fatigue_pin.ocp.solver import SolverOptions
-from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, Task
+from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, StateTarget, Task
 from fatigue_pin.ocp.transcription import Transcription
 from fatigue_pin.robot.model import ModelSource
 from fatigue_pin.core.text import plain, shown
@@ -66,10 +66,12 @@ def _item_tables(kind: str, tables: Any) -> tuple[list[dict[str, Any]], list[Any
         where = f"task.{kind}[{i}]"
         if kind == "targets" and "frame" in t:
             values, built = _frame_target(t, where)
-        elif kind == "targets" and "joint" not in t:
-            raise StudyError(f"{where}: expected either joint + value (a joint target) or frame + position (a frame target)")
+        elif kind == "targets" and "joint" not in t and "state" not in t:
+            raise StudyError(f"{where}: expected either joint + value and/or velocity (a joint target), frame + position (a frame "
+                             "target) or state + value (a state target)")
         else:
-            cls = {"targets": JointTarget, "ranges": JointRange, "planes": FramePlane}[kind]
+            cls = {"targets": StateTarget if "state" in t and "joint" not in t else JointTarget, "ranges": JointRange,
+                   "planes": FramePlane}[kind]
             values, item = read_table(cls, t, where, drop_none=True)
             built = [item]
         out.append(values)
@@ -107,7 +109,7 @@ def key_tables() -> dict[str, dict[str, Any]]:
     return {
         "model": table_keys(ModelSource), "model.payload": table_keys(Payload),
         "task": table_keys(Task, skip=("items",)), "task.targets (joint)": table_keys(JointTarget),
-        "task.targets (frame)": frame, "task.ranges": table_keys(JointRange), "task.planes": table_keys(FramePlane),
+        "task.targets (frame)": frame, "task.targets (state)": table_keys(StateTarget), "task.ranges": table_keys(JointRange), "task.planes": table_keys(FramePlane),
         **{section: table_keys(SECTIONS[section]) for section in ("actuators", "transcription", "horizon", "solver")},
     }
 
@@ -153,7 +155,8 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
 
 
 def _costs_table(table: Any) -> dict[str, Any]:
-    from fatigue_pin.ocp.costs import COST_KINDS
+    from fatigue_pin.core.errors import ParameterError
+    from fatigue_pin.ocp.costs import COST_KINDS, cost_term, kind_options
 
     if not isinstance(table, dict):
         raise StudyError(f"costs = {shown(table)}: expected a table of name = weight")
@@ -172,11 +175,18 @@ def _costs_table(table: Any) -> dict[str, Any]:
         w = spec["weight"]
         if not is_toml_number(w) or not math.isfinite(float(w)) or w < 0:
             raise StudyError(f"costs.{name}.weight = {shown(w)}: expected a finite weight >= 0")
+        options = kind_options(kind)
         for key in spec:
-            if key not in ("weight", "kind", "joints"):
-                raise StudyError(f"unknown key costs.{name}.{key}; expected 'weight', 'kind' or 'joints'")
-        if "joints" in spec and not (isinstance(spec["joints"], list) and all(isinstance(j, str) for j in spec["joints"])):
-            raise StudyError(f"costs.{name}.joints = {shown(spec['joints'])}: expected a list of joint names")
+            if key not in ("weight", "kind", *options):
+                terminal = ("; a terminal cost (at = \"end\") is a term of the state: posture, velocity, fatigue, state or frame"
+                            if key == "at" else "")
+                raise StudyError(f"unknown key costs.{name}.{key}; expected 'weight', 'kind' or an option of kind {kind!r}: "
+                                 f"{list(options)}{terminal}")
+        try:  # the options' values, checked by the kind itself (joint and state names: against the model, later)
+            cost_term(kind, float(w), name=name if name.isidentifier() else None,
+                      **{k: v for k, v in spec.items() if k not in ("weight", "kind")})
+        except ParameterError as exc:
+            raise StudyError(f"costs.{name}: {exc}") from None
         out[name] = spec
     return out
 

@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from fatigue_pin.core.errors import ParameterError, TaskError
-from fatigue_pin.ocp.task import FrameOrientation, FrameTarget, JointTarget, Task
+from fatigue_pin.ocp.task import FrameOrientation, FrameTarget, JointTarget, Task, phase_label, phase_value
 from fatigue_pin.robot.ik import solve_ik
 from fatigue_pin.core.text import shown
 
@@ -107,13 +107,13 @@ def phase_postures(task: Task, model, q_start: np.ndarray) -> dict[float, np.nda
             limits or by other targets), naming the frame, the point and the distance left.
     """
     frame_items = [i for i in task.items if isinstance(i, (FrameTarget, FrameOrientation))]
-    phases = sorted({i.at for i in frame_items})
+    phases = sorted({i.at for i in frame_items}, key=phase_value)
     out: dict[float, np.ndarray] = {}
     q = np.asarray(q_start, dtype=float)
     for at in phases:
         positions = [i for i in frame_items if isinstance(i, FrameTarget) and i.at == at]
         orientations = [i for i in frame_items if isinstance(i, FrameOrientation) and i.at == at]
-        fixed = {t.joint: t.value for t in task.joint_targets if t.at == at}
+        fixed = {t.joint: t.value for t in task.joint_targets if t.at == at and t.value is not None}
         res = solve_ik(model, positions, orientations, q0=q, fixed=fixed, q_ref=q_start)
         if not res.success:
             pm = model.pin_model
@@ -123,7 +123,7 @@ def phase_postures(task: Task, model, q_start: np.ndarray) -> dict[float, np.nda
             what = (f"frame {worst.frame!r} at {shown(worst.position)} m" if worst is not None and res.position_error > 1e-6
                     else f"the orientation of {[o.frame for o in orientations]}")
             raise TaskError(
-                f"task targets at phase {at:g}: inverse kinematics cannot place {what} (best: {max(res.position_error, 0):.4f} m "
+                f"task targets at phase {phase_label(at)}: inverse kinematics cannot place {what} (best: {max(res.position_error, 0):.4f} m "
                 f"outside the tolerance, {max(res.orientation_error, 0):.4f} rad); the point is out of reach or the joint "
                 "limits / other targets block it"
             )
@@ -137,12 +137,12 @@ def ik_reference(task: Task, model, t: np.ndarray, q0: np.ndarray) -> tuple[np.n
     targets): q (len(t), nq), qdot, qddot, as :meth:`Task.reference_trajectory`."""
     postures = phase_postures(task, model, q0)
     items = list(task.joint_targets)
-    targeted = {(t.joint, t.at) for t in items}
+    targeted = {(t.joint, t.at) for t in items if t.value is not None}
     for at, q in postures.items():
         for j, name in enumerate(model.joint_names):
             if (name, at) not in targeted:
                 items.append(JointTarget(name, float(np.clip(q[j], model.q_lower[j], model.q_upper[j])), at))
-    reference = Task(task.cycle_duration, task.intervals_per_cycle, tuple(items), None, task.final_node_offset)
+    reference = Task(task.cycle_duration, task.intervals_per_cycle, tuple(items), None, task.final_node_offset, cyclic=task.cyclic)
     return reference.reference_trajectory(model, t, q0)
 
 

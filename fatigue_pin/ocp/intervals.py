@@ -61,7 +61,8 @@ class IntervalFunctions:
             half over one interval (the library compiles these, not F_fatigue).
         coupling: ``coupling(x, u) -> TL + m_fatigued`` of every half.
         F_rb_active: ``F_rb_active(y, m, u, p) -> y_next`` under the ``active`` coupling, else None.
-        terms: cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_terms,)``.
+        terms: running cost integrands of one interval times dt, ``terms(x, u, u_prev) -> (n_running,)``.
+        terminal: terminal cost terms on an end state, ``terminal(x) -> (n_terminal,)``, or None.
     """
 
     def __init__(self, problem: Problem, transcription: Transcription, fatigue_calls: bool = False) -> None:
@@ -133,9 +134,12 @@ class IntervalFunctions:
         #: :attr:`F_fatigue`'s, m not depending on y); None under the other couplings
         self.F_rb_active = self._active_rigid_body(h, substeps) if actuators.coupling_kind == "active" else None
         v = IntervalVariables(x, u, u_prev, layout, model, actuators)
-        integrands = [term.expression(v) for term in problem.costs]
+        integrands = [term.expression(v) for term in problem.costs if not term.terminal]
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
         self.terms = ca.Function("terms", [x, u, u_prev], [terms], ["x", "u", "u_prev"], ["terms"])
+        ends = [term.expression(v) for term in problem.costs if term.terminal]
+        #: the terminal cost terms on one end state, ``terminal(x) -> (n_terminal,)`` (not times dt), or None
+        self.terminal = ca.Function("terminal", [x], [ca.vertcat(*ends)], ["x"], ["terminal"]) if ends else None
 
     def analytical_rb_jacobian(self) -> ca.Function | None:
         """``jblk_F_rb(w) -> (y_next, J)`` with w = (y, tau) (18 rows for nv = 6): the RK4 of

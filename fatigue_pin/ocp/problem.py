@@ -37,15 +37,17 @@ class StateLayout:
     Attributes:
         nq, nv: configuration and velocity sizes.
         actuators: the actuator halves with their fatigue models.
+        joints: the model's joint names (those of q and qdot).
     """
 
     nq: int
     nv: int
     actuators: SignedTorqueActuators
+    joints: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, model: RobotModel, actuators: SignedTorqueActuators) -> StateLayout:
-        return cls(model.nq, model.nv, actuators)
+        return cls(model.nq, model.nv, actuators, tuple(model.joint_names))
 
     @property
     def half_names(self) -> tuple[str, ...]:
@@ -74,6 +76,27 @@ class StateLayout:
     def nu(self) -> int:
         """Number of controls: two halves per actuated joint (:attr:`SignedTorqueActuators.nu`)."""
         return self.actuators.nu
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The joints the layout's q and qdot rows belong to (model order)."""
+        return self.joints
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """A name for every row of x: ``"<joint>_q"`` (rad or m), ``"<joint>_qdot"`` (rad/s or
+        m/s), then the fatigue states ``"<half>_<state>"`` (:attr:`SignedTorqueActuators.state_names`),
+        shape (nx,). :class:`~fatigue_pin.ocp.task.StateTarget` and the ``state`` cost address
+        states by these names."""
+        joints = self.joint_names
+        return (*(f"{j}_q" for j in joints), *(f"{j}_qdot" for j in joints), *self.actuators.state_names)
+
+    def state_row(self, name: str) -> int:
+        """Row in x of the state named ``name`` (:attr:`state_names`)."""
+        names = self.state_names
+        if name not in names:
+            raise ParameterError(f"state {name!r} is not a state of the problem; its states are {list(names)}")
+        return names.index(name)
 
     @property
     def q(self) -> slice:
@@ -148,7 +171,8 @@ class Problem:
             are the model's).
         task: the cyclic task.
         costs: the cost terms (unique names).
-        x_init: initial state (nx,); ``None``: the task's q_init, zero velocity, rested fatigue.
+        x_init: initial state (nx,); ``None``: the task's q_init and qdot_init (default at rest),
+            rested fatigue.
     """
 
     model: RobotModel
@@ -164,12 +188,34 @@ class Problem:
                 f"actuators drive joints {list(self.actuators.joint_names)}; model {self.model.name!r} has {list(self.model.joint_names)}"
             )
         self.task.check(self.model)
+        self.task.check_states(self.layout.state_names)
+        self._check_cost_names()
         if self.x_init is not None:
             x = np.asarray(self.x_init, dtype=float).reshape(-1)
             if x.size != self.layout.nx:
                 raise ParameterError(f"x_init has {x.size} entries; expected nx = {self.layout.nx}")
             self._check_x_init(x)
             object.__setattr__(self, "x_init", x)
+
+    def _check_cost_names(self) -> None:
+        """Refuse a built-in cost term whose options name a joint, a state or a frame the problem
+        does not have (before anything is built)."""
+        from fatigue_pin.core.errors import ModelError
+        from fatigue_pin.robot.kinematics import frame_id
+
+        states, joints = self.layout.state_names, self.model.joint_names
+        for t in self.costs:
+            for j in t.options.get("joints", []):
+                if j not in joints:
+                    raise ParameterError(f"cost term {t.name!r}: joint {j!r} is not in model {self.model.name!r}; its joints are {list(joints)}")
+            for s in t.options.get("states", []):
+                if s not in states:
+                    raise ParameterError(f"cost term {t.name!r}: state {s!r} is not a state of the problem; its states are {list(states)}")
+            if t.kind == "frame":
+                try:
+                    frame_id(self.model.pin_model, t.options["frame"])
+                except ModelError as exc:
+                    raise ParameterError(f"cost term {t.name!r}: {exc}") from None
 
     def _check_x_init(self, x: np.ndarray) -> None:
         """Refuse an initial state with q or qdot outside the model's bounds, q off a target at
@@ -235,6 +281,7 @@ class Problem:
         L = self.layout
         x0 = np.zeros(L.nx)
         x0[L.q] = self.task.initial_configuration(self.model)
+        x0[L.v] = self.task.initial_velocity(self.model)
         x0[L.m] = self.actuators.initial_state()
         return x0
 

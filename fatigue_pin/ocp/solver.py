@@ -102,7 +102,8 @@ class SolverOptions:
     Attributes:
         linear_solver: IPOPT's linear solver (``mumps`` ships with CasADi; ``ma57``, ``ma27``,
             ... need HSL libraries on the machine).
-        tol: IPOPT ``tol`` (overall convergence tolerance).
+        tol: IPOPT ``tol`` (overall convergence tolerance; 1e-6, IPOPT's default 1e-8:
+            :data:`fatigue_pin.ocp.ipopt_defaults.DEPARTURES` lists every setting unlike IPOPT's).
         constr_viol_tol: IPOPT ``constr_viol_tol``.
         max_iter: IPOPT iteration limit.
         max_wall_time: IPOPT wall-time limit per solve (s); ``None`` for none.

@@ -20,19 +20,29 @@ NLP parameters. Kinds:
 
 Phases are fractions of the cycle in [0, 1); ``at * intervals_per_cycle`` must be a node.
 A target at phase 0 also applies to the end of the last cycle (node N, or N + ``final_node_offset``).
+
+A task need not be cyclic (``cyclic = False``, or any item at ``at = "end"``, :data:`END`): each
+cycle is then a phase with an end of its own, a point-to-point motion. Its items at ``"end"``
+apply to the last node of every phase (nodes n, 2n, ..., N for n intervals per phase), its
+phase-0 items to the first node of every phase only (not to node N), and the horizon drivers put
+no cyclic end box on its windows. :class:`JointTarget` also bounds velocities (``velocity``), and
+:class:`StateTarget` any state by name (a fatigue state such as ``"slider_plus_mf"``).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Sequence, Union
+from typing import Sequence
 
-import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError, TaskError
 from fatigue_pin.core.text import shown
+from fatigue_pin.ocp.task_items import (  # noqa: F401  (the items, importable from here as before)
+    END, FRAME_TARGET_SHAPES, FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, Phase, StateConstraint,
+    StateTarget, TaskItem, _finite, _item_label, _target_text, phase_label, phase_value,
+)
 
 #: Most shooting intervals of one OCP (a cycle, or all the cycles of a horizon): beyond it the
 #: NLP would not fit in memory (arm26: 16 states and 4 controls per interval).
@@ -52,313 +62,31 @@ def check_horizon(task: "Task", n_cycles: object, what: str = "cycles") -> int:
     return n
 
 
-def _finite(owner: str, name: str, value: object, what: str = "a finite number") -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not math.isfinite(float(value)):
-        raise TaskError(f"{owner}.{name} = {shown(value)}: expected {what}")
-    return float(value)
-
-
-def _phase(owner: str, at: object) -> float:
-    x = _finite(owner, "at", at, "a phase of the cycle in [0, 1)")
-    if not 0.0 <= x < 1.0:
-        raise TaskError(f"{owner}.at = {shown(at)}: expected a phase of the cycle in [0, 1)")
-    return x
-
-
-@dataclass(frozen=True)
-class JointTarget:
-    """Joint ``joint`` at ``value`` (rad, or m for a prismatic joint) within ``+- tolerance`` at
-    phase ``at`` of every cycle."""
-
-    joint: str
-    value: float
-    at: float = 0.0
-    tolerance: float = 0.0
-
-    def __post_init__(self) -> None:
-        owner = f"JointTarget({self.joint!r})"
-        object.__setattr__(self, "value", _finite(owner, "value", self.value))
-        object.__setattr__(self, "at", _phase(owner, self.at))
-        tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0")
-        if tol < 0:
-            raise TaskError(f"{owner}.tolerance = {shown(self.tolerance)}: expected a tolerance >= 0")
-        object.__setattr__(self, "tolerance", tol)
-
-
-@dataclass(frozen=True)
-class JointRange:
-    """Joint ``joint`` within ``[lower, upper]`` (rad or m) at every node."""
-
-    joint: str
-    lower: float
-    upper: float
-
-    def __post_init__(self) -> None:
-        owner = f"JointRange({self.joint!r})"
-        lo = _finite(owner, "lower", self.lower)
-        hi = _finite(owner, "upper", self.upper)
-        if lo > hi:
-            raise TaskError(f"{owner}: lower = {shown(lo)} > upper = {shown(hi)}; expected lower <= upper")
-        object.__setattr__(self, "lower", lo)
-        object.__setattr__(self, "upper", hi)
-
-
-@dataclass(frozen=True)
-class StateConstraint:
-    """``lower <= expression(x) <= upper`` at phase ``at`` of every cycle, or at every node
-    (``at = None``).
-
-    Attributes:
-        name: a label (used in messages and results).
-        expression: a ``casadi.Function`` of the state x (nx,) with one output (m,); build it from
-            the model (e.g. a frame position from :mod:`fatigue_pin.robot.model`'s kinematics).
-        lower, upper: bounds, shape (m,) (use +-inf for one-sided bounds).
-        at: phase in [0, 1), or None for every node.
-    """
-
-    name: str
-    expression: ca.Function
-    lower: Sequence[float]
-    upper: Sequence[float]
-    at: float | None = None
-
-    def __post_init__(self) -> None:
-        owner = f"StateConstraint({self.name!r})"
-        if not isinstance(self.expression, ca.Function) or self.expression.n_in() != 1 or self.expression.n_out() != 1:
-            raise TaskError(f"{owner}.expression: expected a casadi.Function of the state x with one output")
-        m = self.expression.size1_out(0) * self.expression.size2_out(0)
-        lo = np.broadcast_to(np.asarray(self.lower, dtype=float), (m,)).copy()
-        hi = np.broadcast_to(np.asarray(self.upper, dtype=float), (m,)).copy()
-        if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo > hi):
-            raise TaskError(f"{owner}: bounds {lo.tolist()}, {hi.tolist()}: expected lower <= upper, no NaN")
-        object.__setattr__(self, "lower", tuple(lo))
-        object.__setattr__(self, "upper", tuple(hi))
-        if self.at is not None:
-            object.__setattr__(self, "at", _phase(owner, self.at))
-
-
-def _vector(owner: str, name: str, value: object, n: int = 3, what: str = "3 finite numbers") -> tuple[float, ...]:
-    try:
-        a = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise TaskError(f"{owner}.{name} = {shown(value)}: expected {what}") from None
-    if a.size != n or not np.all(np.isfinite(a)):
-        raise TaskError(f"{owner}.{name} = {shown(value)}: expected {what}")
-    return tuple(float(x) for x in a)
-
-
-def _function_name(text: str) -> str:
-    """A valid casadi.Function name from a label (letters, digits, single underscores)."""
-    import re
-
-    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", text)).strip("_")
-    return name if name[:1].isalpha() else f"f_{name}"
-
-
-def _check_frame(owner: str, model, frame: str) -> None:
-    from fatigue_pin.core.errors import ModelError
-    from fatigue_pin.robot.kinematics import frame_id
-
-    try:
-        frame_id(model.pin_model, frame)
-    except ModelError as exc:
-        raise TaskError(f"{owner}: {exc}") from None
-
-
-#: shapes of the tolerance region of a :class:`FrameTarget`
-FRAME_TARGET_SHAPES = ("ball", "box")
-
-
-@dataclass(frozen=True)
-class FrameTarget:
-    """The origin of frame ``frame`` at ``position`` (m, world frame) at phase ``at`` of every
-    cycle, within ``tolerance`` (m): a ball of that radius (``shape = "ball"``) or a box of that
-    half-width (``"box"``). A zero tolerance pins the point (three equality rows).
-
-    It becomes a :class:`StateConstraint` (:meth:`constraint`) on the frame position from
-    Pinocchio's kinematics on CasADi symbols (:meth:`RobotModel.frame_position`). The ball is the
-    row ``(|p - position|^2 - tolerance^2) / (2 tolerance) <= 0``, about ``|p - position| -
-    tolerance`` near its surface, so the solver's constraint tolerance is in metres.
-    """
-
-    frame: str
-    position: tuple[float, float, float]
-    at: float = 0.0
-    tolerance: float = 0.0
-    shape: str = "ball"
-
-    def __post_init__(self) -> None:
-        owner = f"FrameTarget({self.frame!r})"
-        object.__setattr__(self, "position", _vector(owner, "position", self.position, what="3 finite numbers (m, world frame)"))
-        object.__setattr__(self, "at", _phase(owner, self.at))
-        tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0 (m)")
-        if tol < 0:
-            raise TaskError(f"{owner}.tolerance = {shown(self.tolerance)}: expected a tolerance >= 0 (m)")
-        object.__setattr__(self, "tolerance", tol)
-        if self.shape not in FRAME_TARGET_SHAPES:
-            raise TaskError(f"{owner}.shape = {shown(self.shape)}: expected one of {list(FRAME_TARGET_SHAPES)}")
-
-    @property
-    def name(self) -> str:
-        return f"{self.frame}_position_at_{self.at:g}"
-
-    def distance(self, p: np.ndarray) -> float:
-        """How far ``p`` (3,) is outside the tolerance region (m; <= 0 inside)."""
-        d = np.asarray(p, dtype=float) - np.asarray(self.position)
-        if self.shape == "box" or self.tolerance == 0.0:
-            return float(np.max(np.abs(d)) - self.tolerance)
-        return float(np.linalg.norm(d) - self.tolerance)
-
-    def constraint(self, model, layout) -> StateConstraint:
-        x = ca.SX.sym("x", layout.nx)
-        d = model.frame_position(self.frame)(x[layout.q]) - ca.DM(self.position)
-        tol = self.tolerance
-        if self.shape == "box" or tol == 0.0:
-            expr, lower, upper = d, -tol, tol
-        else:
-            expr, lower, upper = (ca.dot(d, d) - tol * tol) / (2 * tol), -np.inf, 0.0
-        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [expr]), lower, upper, self.at)
-
-    def check(self, model, q_init: np.ndarray | None = None) -> None:
-        """Unknown frame, or a target out of the frame's reach (:func:`fatigue_pin.robot.kinematics.reach`)."""
-        from fatigue_pin.robot.kinematics import reach
-
-        owner = f"task frame target of {self.frame!r}"
-        _check_frame(owner, model, self.frame)
-        centre, radius = reach(model.pin_model, self.frame)
-        distance = float(np.linalg.norm(np.asarray(self.position) - centre))
-        if distance - self.tolerance * math.sqrt(3) > radius:
-            raise TaskError(
-                f"{owner}: position {shown(self.position)} m is out of reach: {distance:.3f} m from the base of its chain at "
-                f"{np.round(centre, 3).tolist()}, which reaches at most {radius:.3f} m (the sum of its link lengths)"
-            )
-        if q_init is not None and self.at == 0.0:  # node 0 is the initial state: it must meet the target
-            from fatigue_pin.robot.kinematics import frame_placement
-
-            off = self.distance(frame_placement(model.pin_model, self.frame, q_init).translation)
-            if off > 1e-9:
-                raise TaskError(
-                    f"{owner}: the initial configuration puts the frame {off:.4f} m outside its phase-0 target "
-                    f"{shown(self.position)} +- {self.tolerance:g} m; set task.q_init to a posture that meets it "
-                    "(fatigue_pin.robot.ik.solve_ik finds one)"
-                )
-
-
-@dataclass(frozen=True)
-class FrameOrientation:
-    """Frame ``frame`` oriented as ``rotation`` (3 x 3, world frame; or 3 roll-pitch-yaw angles,
-    rad) within ``tolerance`` (rad, > 0) at phase ``at`` of every cycle: the row
-    ``cos(angle(R, rotation)) - cos(tolerance) >= 0``."""
-
-    frame: str
-    rotation: tuple[float, ...]
-    at: float = 0.0
-    tolerance: float = 0.05
-
-    def __post_init__(self) -> None:
-        owner = f"FrameOrientation({self.frame!r})"
-        a = np.asarray(self.rotation, dtype=float)
-        if a.size == 3:
-            import pinocchio as pin
-
-            a = pin.rpy.rpyToMatrix(*_vector(owner, "rotation", a))
-        R = np.asarray(_vector(owner, "rotation", a, 9, "a rotation matrix (3 x 3) or 3 roll-pitch-yaw angles (rad)")).reshape(3, 3)
-        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-            raise TaskError(f"{owner}.rotation = {shown(self.rotation)}: expected a rotation matrix (orthonormal, det 1)")
-        object.__setattr__(self, "rotation", tuple(R.reshape(-1)))
-        object.__setattr__(self, "at", _phase(owner, self.at))
-        tol = _finite(owner, "tolerance", self.tolerance, "an angle in (0, pi] (rad)")
-        if not 0 < tol <= math.pi:
-            raise TaskError(f"{owner}.tolerance = {shown(self.tolerance)}: expected an angle in (0, pi] (rad)")
-        object.__setattr__(self, "tolerance", tol)
-
-    @property
-    def name(self) -> str:
-        return f"{self.frame}_orientation_at_{self.at:g}"
-
-    @property
-    def matrix(self) -> np.ndarray:
-        return np.asarray(self.rotation).reshape(3, 3)
-
-    def constraint(self, model, layout) -> StateConstraint:
-        x = ca.SX.sym("x", layout.nx)
-        R = model.frame_rotation(self.frame)(x[layout.q])
-        cos_angle = (ca.trace(ca.DM(self.matrix).T @ R) - 1) / 2
-        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [cos_angle - math.cos(self.tolerance)]), 0.0, np.inf, self.at)
-
-    def check(self, model, q_init: np.ndarray | None = None) -> None:
-        _check_frame(f"task orientation target of {self.frame!r}", model, self.frame)
-
-
-@dataclass(frozen=True)
-class FramePlane:
-    """The origin of frame ``frame`` on the positive side of a plane: ``normal . p(q) >= offset``
-    (m, world frame; ``normal`` is made unit) at every node (``at = None``), e.g. "the hand
-    stays above the table", or at phase ``at`` only."""
-
-    frame: str
-    normal: tuple[float, float, float]
-    offset: float
-    at: float | None = None
-
-    def __post_init__(self) -> None:
-        owner = f"FramePlane({self.frame!r})"
-        n = np.asarray(_vector(owner, "normal", self.normal, what="3 finite numbers, not all 0"))
-        if np.linalg.norm(n) < 1e-12:
-            raise TaskError(f"{owner}.normal = {shown(self.normal)}: expected 3 finite numbers, not all 0")
-        object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
-        object.__setattr__(self, "offset", _finite(owner, "offset", self.offset, "a finite distance (m)"))
-        if self.at is not None:
-            object.__setattr__(self, "at", _phase(owner, self.at))
-
-    @property
-    def name(self) -> str:
-        return f"{self.frame}_plane" + ("" if self.at is None else f"_at_{self.at:g}")
-
-    def height(self, p: np.ndarray) -> float:
-        """Signed distance of ``p`` (3,) above the plane (m)."""
-        return float(np.dot(self.normal, p) - self.offset)
-
-    def constraint(self, model, layout) -> StateConstraint:
-        x = ca.SX.sym("x", layout.nx)
-        p = model.frame_position(self.frame)(x[layout.q])
-        return StateConstraint(self.name, ca.Function(_function_name(self.name), [x], [ca.dot(ca.DM(self.normal), p)]), self.offset, np.inf, self.at)
-
-    def check(self, model, q_init: np.ndarray | None = None) -> None:
-        """Unknown frame, or an initial configuration below the plane (a bound over every node)."""
-        owner = f"task plane of {self.frame!r}"
-        _check_frame(owner, model, self.frame)
-        if q_init is not None and self.at is None:
-            from fatigue_pin.robot.kinematics import frame_placement
-
-            h = self.height(frame_placement(model.pin_model, self.frame, q_init).translation)
-            if h < -1e-9:
-                raise TaskError(f"{owner}: the initial configuration puts the frame {-h:.4f} m below the plane "
-                                f"normal {shown(self.normal)} . p >= {self.offset:g}; expected q_init on its positive side")
-
-
-TaskItem = Union[JointTarget, JointRange, StateConstraint, FrameTarget, FrameOrientation, FramePlane]
-
-
 @dataclass(frozen=True)
 class Task:
-    """A cyclic task: the cycle's timing, its constraints and the initial posture.
+    """A task: the cycle's timing, its constraints and the initial state.
 
     Attributes:
-        cycle_duration: duration of one cycle (s).
+        cycle_duration: duration of one cycle (phase) (s).
         intervals_per_cycle: shooting intervals per cycle.
-        items: the constraints (:class:`JointTarget`, :class:`JointRange`, :class:`StateConstraint`).
+        items: the constraints (:class:`JointTarget`, :class:`JointRange`, :class:`StateTarget`,
+            :class:`StateConstraint`, frame items).
         q_init: initial configuration (rad or m), shape (nq,); ``None``: every joint at 0, or at
             its phase-0 target where it has one. A given q_init must meet the phase-0 targets
             within their tolerances (node 0 is theirs too; :meth:`check_start`).
-        final_node_offset: targets at phase 0 apply to the end of the last cycle at node
-            N + offset (0, or -1 to impose it one node before the end).
+        final_node_offset: (cyclic tasks) targets at phase 0 apply to the end of the last cycle
+            at node N + offset (0, or -1 to impose it one node before the end).
         given_start: every solve gives the start state (a closed loop's window that starts
             mid-cycle from the measured state, :func:`fatigue_pin.drivers.mpc.phase_shifted`):
             the task has no start posture of its own (``q_init`` must be None), and
             :meth:`check` checks none against the phase-0 items and the planes (node 0 is the
             given state, which wins over them: :meth:`Ocp.state_bounds`,
             :meth:`Ocp.parameter_vector`). Not a study key.
+        qdot_init: initial velocities (rad/s or m/s), shape (nv,); ``None``: at rest.
+        cyclic: whether each cycle ends where the next starts (its phase-0 items bind the last
+            node too, and sliding windows end in a box around their start); ``False``: every
+            cycle is a phase with an end of its own (items at ``"end"`` bind its last node).
+            ``None`` (default): cyclic unless an item is at ``"end"``.
     """
 
     cycle_duration: float
@@ -367,6 +95,8 @@ class Task:
     q_init: tuple[float, ...] | None = None
     final_node_offset: int = 0
     given_start: bool = field(default=False, metadata={"study": False})
+    qdot_init: tuple[float, ...] | None = None
+    cyclic: bool | None = None
 
     def __post_init__(self) -> None:
         d = _finite("Task", "cycle_duration", self.cycle_duration, "a duration in seconds > 0")
@@ -381,39 +111,56 @@ class Task:
         object.__setattr__(self, "intervals_per_cycle", int(n))
         object.__setattr__(self, "items", tuple(self.items))
         for item in self.items:
-            if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and not callable(getattr(item, "constraint", None)):
-                raise TaskError(f"task item {item!r}: expected a JointTarget, JointRange, StateConstraint or an item "
+            if not isinstance(item, (JointTarget, JointRange, StateTarget, StateConstraint)) and not callable(getattr(item, "constraint", None)):
+                raise TaskError(f"task item {item!r}: expected a JointTarget, JointRange, StateTarget, StateConstraint or an item "
                                 "with a constraint(model, layout) method (FrameTarget, FramePlane, FrameOrientation)")
             at = getattr(item, "at", None)
-            if at is not None and abs(at * n - round(at * n)) > 1e-9:
+            if at is not None and at != END and abs(at * n - round(at * n)) > 1e-9:
                 raise TaskError(
                     f"task phase at = {shown(at)} is not a node: at * intervals_per_cycle = {at * n:g}; expected a whole number"
                 )
+        ends = [item for item in self.items if getattr(item, "at", None) == END]
+        if self.cyclic is None:
+            object.__setattr__(self, "cyclic", not ends)
+        elif not isinstance(self.cyclic, (bool, np.bool_)):
+            raise TaskError(f"Task.cyclic = {shown(self.cyclic)}: expected true or false")
+        elif self.cyclic and ends:
+            raise TaskError(f"task item {_item_label(ends[0])} is at the end, but Task.cyclic = true: a cyclic task ends where its "
+                            'next cycle starts (phase 0); expected cyclic = false (or no key cyclic) for a task with an "end"')
+        object.__setattr__(self, "cyclic", bool(self.cyclic))
         self._check_one_target_per_node()
         if self.final_node_offset not in (0, -1):
             raise TaskError(f"Task.final_node_offset = {shown(self.final_node_offset)}: expected 0 or -1")
+        if self.final_node_offset and not self.cyclic:
+            raise TaskError("Task.final_node_offset = -1 in a non-cyclic task: expected 0 (the offset moves the phase-0 targets "
+                            "of a cyclic task's last node; a non-cyclic task's end has its own targets)")
         if not isinstance(self.given_start, (bool, np.bool_)):
             raise TaskError(f"Task.given_start = {shown(self.given_start)}: expected true or false")
-        if self.given_start and self.q_init is not None:
-            raise TaskError("Task.q_init with given_start: expected no q_init (every solve gives the start state)")
-        if self.q_init is not None:
-            q = tuple(_finite("Task", "q_init", v, "a list of finite joint positions") for v in np.ravel(self.q_init))
-            object.__setattr__(self, "q_init", q)
+        for name in ("q_init", "qdot_init"):
+            if self.given_start and getattr(self, name) is not None:
+                raise TaskError(f"Task.{name} with given_start: expected no {name} (every solve gives the start state)")
+        for name in ("q_init", "qdot_init"):
+            value = getattr(self, name)
+            if value is not None:
+                what = "a list of finite joint positions" if name == "q_init" else "a list of finite joint velocities"
+                if isinstance(value, (str, bytes)) or np.ndim(value) == 0:
+                    raise TaskError(f"Task.{name} = {shown(value)}: expected {what}")
+                object.__setattr__(self, name, tuple(_finite("Task", name, v, what) for v in np.ravel(value)))
 
     def _check_one_target_per_node(self) -> None:
         """Refuse two joint targets of one joint at one node of the cycle that differ (the later
         one would replace the earlier one's bounds without a word); identical ones are one."""
         n = self.intervals_per_cycle
-        seen: dict[tuple[str, int], JointTarget] = {}
+        seen: dict[tuple[str, object], JointTarget] = {}
         for t in self.items:
             if not isinstance(t, JointTarget):
                 continue
-            key = (t.joint, int(round(t.at * n)) % n)
+            key = (t.joint, t.at if t.at == END else int(round(t.at * n)) % n)
             first = seen.setdefault(key, t)
-            if (first.value, first.tolerance) != (t.value, t.tolerance):
+            if (first.value, first.tolerance, first.velocity, first.velocity_tolerance) != (t.value, t.tolerance, t.velocity, t.velocity_tolerance):
                 raise TaskError(
-                    f"task targets {shown(first.value)} (+- {first.tolerance:g}) and {shown(t.value)} (+- {t.tolerance:g}) of joint "
-                    f"{t.joint!r} at phase {t.at:g}: expected one target per joint and phase"
+                    f"task targets {_target_text(first)} and {_target_text(t)} of joint {t.joint!r} at phase {phase_label(t.at)}: "
+                    "expected one target per joint and phase"
                 )
 
     def check_start(self, model, q: np.ndarray, what: str = "q_init", slack: float = 1e-9) -> None:
@@ -421,13 +168,13 @@ class Task:
         node is that target's node too, and the target would override ``q`` there without a
         word): each such joint must be within the target's tolerance (+ ``slack``)."""
         for t in self.joint_targets:
-            if t.at != 0.0 or t.joint not in model.joint_names:
+            if t.at != 0.0 or t.value is None or t.joint not in model.joint_names:
                 continue
             j = model.joint_names.index(t.joint)
             if abs(float(q[j]) - t.value) > t.tolerance + slack:
                 raise TaskError(
                     f"task {what} = {[float(x) for x in q]} puts joint {t.joint!r} at {float(q[j])!r}, but its target at phase 0 "
-                    f"is {shown(t.value)} (+- {t.tolerance:g}); expected the start within the phase-0 target (or no {what}: "
+                    f"is {shown(t.value)} (+- {t.tolerance:g}) {model.joint_units(j).position}; expected the start within the phase-0 target (or no {what}: "
                     "it then starts at its targets)"
                 )
 
@@ -471,51 +218,80 @@ class Task:
             out.append(sc)
         return tuple(out)
 
-    def nodes(self, at: float | None, n_intervals: int) -> list[int]:
+    @property
+    def state_targets(self) -> tuple[StateTarget, ...]:
+        return tuple(i for i in self.items if isinstance(i, StateTarget))
+
+    def nodes(self, at: Phase | None, n_intervals: int) -> list[int]:
         """Nodes of a horizon of ``n_intervals`` intervals at phase ``at`` of every cycle (every
-        node for ``None``); phase 0 includes the final node (N + ``final_node_offset``)."""
+        node for ``None``). Cyclic: phase 0 includes the final node (N + ``final_node_offset``).
+        Non-cyclic: phase 0 is the first node of every phase, :data:`END` its last (n, 2n, ..., N)."""
         n = self.intervals_per_cycle
         if at is None:
             return list(range(n_intervals + 1))
+        if at == END:
+            return list(range(n, n_intervals + 1, n))
         offset = int(round(at * n))
         nodes = list(range(offset, n_intervals, n))
-        if offset == 0 and n_intervals > 0:
+        if offset == 0 and n_intervals > 0 and self.cyclic:
             nodes.append(n_intervals + self.final_node_offset)
         return nodes
 
+    def check_states(self, state_names: Sequence[str]) -> None:
+        """Refuse a :class:`StateTarget` naming a state that is not in ``state_names`` (the
+        problem's layout, :meth:`~fatigue_pin.ocp.problem.StateLayout.state_names`)."""
+        for t in self.state_targets:
+            if t.state not in state_names:
+                raise TaskError(f"task state target {t.state!r} is not a state of the problem; its states are {list(state_names)}")
+
     def check(self, model) -> None:
         """Raise TaskError if the task does not fit ``model`` (a :class:`~fatigue_pin.robot.model.RobotModel`):
-        unknown joints, targets or ranges outside the joint limits, a bad initial posture."""
+        unknown joints, targets or ranges outside the joint limits, a bad initial state."""
         for item in self.items:
             if isinstance(item, (JointTarget, JointRange)):
                 if item.joint not in model.joint_names:
                     raise TaskError(f"task joint {item.joint!r} is not in model {model.name!r}; its joints are {list(model.joint_names)}")
                 j = model.joint_names.index(item.joint)
                 lo, hi = model.q_lower[j], model.q_upper[j]
-                values = (item.value - item.tolerance, item.value + item.tolerance) if isinstance(item, JointTarget) else (item.lower, item.upper)
-                label = "target" if isinstance(item, JointTarget) else "range"
-                if isinstance(item, JointTarget) and not (lo <= item.value <= hi):
-                    raise TaskError(f"task {label} {shown(item.value)} of joint {item.joint!r} is outside its range [{lo}, {hi}]")
-                if isinstance(item, JointRange) and (values[1] < lo or values[0] > hi):
-                    raise TaskError(f"task range {shown(values)} of joint {item.joint!r} does not meet its range [{lo}, {hi}]")
-            elif isinstance(item, StateConstraint):
-                pass  # checked against the layout when the OCP is built
+                if isinstance(item, JointTarget):
+                    where = f" (at {'the end' if item.at == END else f'phase {item.at:g}'})"
+                    if item.value is not None and not (lo <= item.value <= hi):
+                        raise TaskError(f"task target {shown(item.value)} of joint {item.joint!r} is outside its range [{lo}, {hi}] {model.joint_units(j).position}{where}")
+                    vlo, vhi = model.v_lower[j], model.v_upper[j]
+                    if item.velocity is not None and not (vlo <= item.velocity <= vhi):
+                        raise TaskError(f"task velocity target {shown(item.velocity)} of joint {item.joint!r} is outside its "
+                                        f"velocity bounds [{vlo}, {vhi}] {model.joint_units(j).velocity}{where}")
+                elif item.upper < lo or item.lower > hi:
+                    raise TaskError(f"task range {shown((item.lower, item.upper))} of joint {item.joint!r} does not meet its range [{lo}, {hi}] {model.joint_units(j).position}")
         q = None if self.given_start else self.initial_configuration(model)  # given_start: no posture to check
         if q is not None:
             bad = [model.joint_names[j] for j in range(model.nq) if not (model.q_lower[j] <= q[j] <= model.q_upper[j])]
             if bad:
                 raise TaskError(f"task initial configuration q_init = {q.tolist()} is outside the range of joints {bad}")
             self.check_start(model, q)
+            v = self.initial_velocity(model)
+            bad = [model.joint_names[j] for j in range(model.nv) if not (model.v_lower[j] <= v[j] <= model.v_upper[j])]
+            if bad:
+                raise TaskError(f"task initial velocities qdot_init = {v.tolist()} are outside the velocity bounds of joints {bad}")
         for item in self.items:  # frame targets, planes, orientations: unknown frames, reach (and the start posture)
-            if not isinstance(item, (JointTarget, JointRange, StateConstraint)) and callable(getattr(item, "check", None)):
+            if not isinstance(item, (JointTarget, JointRange, StateTarget, StateConstraint)) and callable(getattr(item, "check", None)):
                 item.check(model, q)
+
+    def initial_velocity(self, model) -> np.ndarray:
+        """Initial qdot (rad/s or m/s), shape (nv,): ``qdot_init``, or at rest."""
+        if self.qdot_init is None:
+            return np.zeros(model.nv)
+        v = np.asarray(self.qdot_init, dtype=float).reshape(-1)
+        if v.size != model.nv:
+            raise TaskError(f"task qdot_init has {v.size} entries; model {model.name!r} has nv = {model.nv}")
+        return v
 
     def initial_configuration(self, model) -> np.ndarray:
         """Initial q (rad or m), shape (nq,)."""
         if self.q_init is None:
             q = np.zeros(model.nq)
             for t in self.joint_targets:
-                if t.at == 0.0 and t.joint in model.joint_names:
+                if t.at == 0.0 and t.value is not None and t.joint in model.joint_names:
                     q[model.joint_names.index(t.joint)] = t.value
             return q
         q = np.asarray(self.q_init, dtype=float).reshape(-1)
@@ -528,7 +304,9 @@ class Task:
 
         Each joint with targets follows a half-cosine from one target to the next in phase
         order (periodic over the cycle); the others stay at ``q0``. For the curl (15 deg at phase
-        0, 150 deg at 0.5) this is ``low + (high - low) (1 - cos(2 pi t / T)) / 2``.
+        0, 150 deg at 0.5) this is ``low + (high - low) (1 - cos(2 pi t / T)) / 2``. A non-cyclic
+        task goes from ``q0`` at phase 0 (or the phase-0 target) through its targets to the one at
+        the end, in every phase.
 
         Returns:
             q (len(t), nq), qdot (len(t), nv), qddot (len(t), nv).
@@ -539,22 +317,45 @@ class Task:
         qdd = np.zeros((t.size, model.nv))
         by_joint: dict[str, list[JointTarget]] = {}
         for tgt in self.joint_targets:
-            by_joint.setdefault(tgt.joint, []).append(tgt)
+            if tgt.value is not None:
+                by_joint.setdefault(tgt.joint, []).append(tgt)
+        # phase in [0, 1) of every time; a non-cyclic task's phase ends at 1 (t = T is an end)
         phase = np.mod(t / T, 1.0)
+        if not self.cyclic:
+            near = np.round(t / T)
+            phase = np.where(np.isclose(t / T, near, rtol=0, atol=1e-9), 0.0, phase)
+            phase = np.where((phase == 0.0) & (t > 0), 1.0, phase)
         for joint, targets in by_joint.items():
             j = model.joint_names.index(joint)
-            pts = sorted(targets, key=lambda x: x.at)
-            if len(pts) == 1:
-                q[:, j] = pts[0].value
-                continue
-            ats = [p.at for p in pts] + [pts[0].at + 1.0]
-            vals = [p.value for p in pts] + [pts[0].value]
+            pts = sorted(targets, key=lambda x: phase_value(x.at))
+            ats, vals = [phase_value(p.at) for p in pts], [p.value for p in pts]
+            if self.cyclic:
+                if len(pts) == 1:
+                    q[:, j] = pts[0].value
+                    continue
+                ats, vals = ats + [ats[0] + 1.0], vals + [vals[0]]
+            else:
+                # the first phase starts at q0, each later one where the previous ended
+                later = np.floor(t / T - 1e-9) >= 1
+                start = np.where(later, vals[-1], float(q0[j])) if ats[0] > 0.0 else None
+                if ats[0] > 0.0:
+                    ats, vals = [0.0] + ats, [float(q0[j])] + vals
+                if ats[-1] < 1.0:
+                    ats, vals = ats + [1.0], vals + [vals[-1]]
+                if len(ats) == 1:
+                    q[:, j] = vals[0]
+                    continue
             ph = np.where(phase < ats[0], phase + 1.0, phase)
-            for k in range(len(pts)):
-                sel = (ph >= ats[k]) & (ph < ats[k + 1])
+            for k in range(len(ats) - 1):
+                last = k == len(ats) - 2
+                sel = (ph >= ats[k]) & ((ph <= ats[k + 1]) if last else (ph < ats[k + 1]))
                 span = (ats[k + 1] - ats[k]) * T
+                if span <= 0:
+                    continue
                 s = (ph[sel] - ats[k]) * T / span  # 0..1 within the segment
-                a, b = vals[k], vals[k + 1]
+                # a non-cyclic phase's first segment starts where the phase starts
+                a = start[sel] if not self.cyclic and k == 0 and start is not None else vals[k]
+                b = vals[k + 1]
                 w = math.pi / span
                 q[sel, j] = a + (b - a) * 0.5 * (1 - np.cos(math.pi * s))
                 qd[sel, j] = (b - a) * 0.5 * w * np.sin(math.pi * s)
@@ -562,12 +363,24 @@ class Task:
         return q, qd, qdd
 
 
-def joint_target_pairs(task: Task, model, n_intervals: int) -> list[tuple[int, int, float, float]]:
-    """``(node, row of q, lower, upper)`` of every joint target over a horizon."""
+def joint_target_pairs(task: Task, model, n_intervals: int, layout=None) -> list[tuple[int, int, float, float]]:
+    """``(node, row of x, lower, upper)`` of every target over a horizon: joint targets' values
+    (rows of q) and velocities (rows of qdot, nq + j), and, with ``layout`` (a
+    :class:`~fatigue_pin.ocp.problem.StateLayout`), the :class:`StateTarget` items (their rows)."""
     out = []
     for tgt in task.joint_targets:
         j = model.joint_names.index(tgt.joint)
         for node in task.nodes(tgt.at, n_intervals):
-            out.append((node, j, tgt.value - tgt.tolerance, tgt.value + tgt.tolerance))
+            if tgt.value is not None:
+                out.append((node, j, tgt.value - tgt.tolerance, tgt.value + tgt.tolerance))
+            if tgt.velocity is not None:
+                out.append((node, model.nq + j, tgt.velocity - tgt.velocity_tolerance, tgt.velocity + tgt.velocity_tolerance))
+    if layout is not None:
+        names = layout.state_names
+        for tgt in task.state_targets:
+            row = names.index(tgt.state)
+            for node in task.nodes(tgt.at, n_intervals):
+                out.append((node, row, tgt.value - tgt.tolerance, tgt.value + tgt.tolerance))
+    elif task.state_targets:
+        raise TaskError("task state targets need the problem's state layout to find their rows")
     return sorted(out, key=lambda r: (r[0], r[1]))
-

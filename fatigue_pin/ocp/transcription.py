@@ -5,13 +5,9 @@ intervals_per_cycle intervals of length dt), :class:`Ocp` builds::
 
     x_{k+1} = F(x_k, u_k)                         gaps, k = 0..N-1 (rigid body and fatigue
                                                   integrated by separate RK4 functions)
-    T_k = B u_k                                   auxiliary joint torque (halves the Hessian):
-                                                  tau_plus + tau_minus, 0 on passive joints
-    0 <= TL_h(u_k) + m_fatigued,h(x_k) <= 1       every half h, every node (u_N := u_{N-1}),
-                                                  under the `tl+mf<=1` coupling (the default;
-                                                  `observed`: no such row; `active`: no row,
-                                                  and the rigid body takes sum_h ma_h limit_h,
-                                                  integrated with the fatigue states)
+    T_k = B u_k                                   auxiliary joint torque (0 on passive joints)
+    0 <= TL_h(u_k) + m_fatigued,h(x_k) <= 1       every half h, every node (u_N := u_{N-1}), under
+                                                  the `tl+mf<=1` coupling only (docs/model.md)
     X_lb <= x_k <= X_ub                            model bounds, [0, 1] on fatigue states, the
                                                   initial state at node 0, joint targets at
                                                   their nodes, joint ranges, and (sliding
@@ -181,9 +177,8 @@ class Ocp:
 
     @property
     def torque_is_variable(self) -> bool:
-        """Whether the joint torque is a decision variable (:attr:`Transcription.torque_variable`;
-        never under the ``active`` coupling, whose torque is a function of the states within the
-        interval, not a value per interval)."""
+        """:attr:`Transcription.torque_variable`, but never under the ``active`` coupling (its
+        torque follows the states within the interval)."""
         return self.transcription.torque_variable and self.actuators.coupling_kind != "active"
 
     @property
@@ -304,15 +299,14 @@ class Ocp:
         opti.subject_to(X[:ny, 1:] == fn.rigid_body_step(X[:ny, :N], X[ny:, :N], U, P_fatigue, T, call=mapped))
         opti.subject_to(X[ny:, 1:] == self._fatigue_step(X[ny:, :N], U, P_fatigue, mapped))
         if self.actuators.coupling_rows:  # the `tl+mf<=1` coupling (docs/model.md)
-            coupling = mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=())
-            opti.subject_to(opti.bounded(0, coupling, 1))
+            opti.subject_to(opti.bounded(0, mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=()), 1))
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
         #: rows of g that stay constraints although they bound one variable (``target_rows``)
         self.kept_rows: tuple[int, ...] = ()
         if self.transcription.target_rows:
             first = opti.g.numel()
-            pairs = joint_target_pairs(self.task, self.model, N)
+            pairs = joint_target_pairs(self.task, self.model, N, layout)
             starts = [(j, a, b) for node, j, a, b in pairs if node == 0]
             if starts:  # bounds of the node-0 rows: the targets widened to the start (parameter_vector)
                 S_lb, S_ub = params.add("start_targets_lb", len(starts)), params.add("start_targets_ub", len(starts))
@@ -331,17 +325,39 @@ class Ocp:
             values = sc.expression.map(len(nodes))(X[:, nodes])
             opti.subject_to(opti.bounded(lb, values, ub))
             self._state_constraints.append((sc, nodes))
-        # objective: weighted named terms summed over intervals; the same function of (X, U)
-        # gives the per-cycle costs
-        n_terms = len(self.cost_terms)
+        # objective: weighted named terms summed over intervals (running) and over the ends of
+        # the phases (terminal); the same functions of (X, U) give the per-cycle costs
+        running, terminal = self._running_rows, self._terminal_rows
+        n_terms = len(running)
         Xn, Un = ca.MX.sym("X", nx, N + 1), ca.MX.sym("U", nu, N)
         terms = fn.terms.map(N)(Xn[:, :N], Un, ca.horzcat(Un[:, 0], Un[:, : N - 1])) if n_terms else ca.MX(0, N)
         self._terms_fn = ca.Function("interval_terms", [Xn, Un], [terms])
+        W_running = P_weights[running] if running else ca.MX(0, 1)
         if n_terms and self._uses_blocks:  # the map itself in the graph, where the blocks find it
-            opti.minimize(ca.dot(P_weights, ca.sum2(mapped(fn.terms, N, X[:, :N], U, ca.horzcat(U[:, 0], U[:, : N - 1]), how=()))))
+            objective = ca.dot(W_running, ca.sum2(mapped(fn.terms, N, X[:, :N], U, ca.horzcat(U[:, 0], U[:, : N - 1]), how=())))
         else:  # as before the blocks (the same generated code, so `nlp` mode keeps its cache entries)
-            opti.minimize(ca.dot(P_weights, ca.sum2(self._terms_fn(X, U))) if n_terms else ca.MX(0))
+            objective = ca.dot(W_running, ca.sum2(self._terms_fn(X, U))) if n_terms else ca.MX(0)
+        if terminal:
+            ends = self.end_nodes
+            self._terminal_fn = ca.Function("end_terms", [Xn], [fn.terminal.map(len(ends))(Xn[:, ends])])
+            objective = objective + ca.dot(P_weights[terminal], ca.sum2(fn.terminal.map(len(ends))(X[:, ends])))
+        opti.minimize(objective)
         return opti
+
+    @property
+    def _running_rows(self) -> list[int]:
+        """Positions in :attr:`cost_terms` of the running terms (integrated over the intervals)."""
+        return [i for i, t in enumerate(self.problem.costs) if not t.terminal]
+
+    @property
+    def _terminal_rows(self) -> list[int]:
+        """Positions in :attr:`cost_terms` of the terminal terms (on the ends of the phases)."""
+        return [i for i, t in enumerate(self.problem.costs) if t.terminal]
+
+    @property
+    def end_nodes(self) -> list[int]:
+        """The last node of every phase (cycle): n, 2n, ..., N, where terminal costs apply."""
+        return list(range(self.task.intervals_per_cycle, self.n_intervals + 1, self.task.intervals_per_cycle))
 
     def _fatigue_step(self, M: ca.MX, U: ca.MX, P: ca.MX, mapped: Callable[..., ca.MX]) -> ca.MX:
         """The fatigue states after every interval, (n_states, N), from M (n_states, N), U (nu, N)
@@ -432,7 +448,7 @@ class Ocp:
             X_lb[j, :] = np.maximum(X_lb[j, :], rng.lower)
             X_ub[j, :] = np.minimum(X_ub[j, :], rng.upper)
         # with target_rows the targets are rows of g (:meth:`_formulate`), not bounds
-        targets = [] if self.transcription.target_rows else joint_target_pairs(self.task, self.model, N)
+        targets = [] if self.transcription.target_rows else joint_target_pairs(self.task, self.model, N, L)
         for node, j, a, b in targets:
             X_lb[j, node], X_ub[j, node] = a, b
         tol = self.end_tolerance
@@ -505,7 +521,7 @@ class Ocp:
         :meth:`state_bounds`; a start that meets the target within IPOPT's tolerance keeps the
         row the paper's code has, violated by that little)."""
         tol = self.solver_options.constr_viol_tol
-        starts = [(j, a, b) for node, j, a, b in joint_target_pairs(self.task, self.model, self.n_intervals) if node == 0]
+        starts = [(j, a, b) for node, j, a, b in joint_target_pairs(self.task, self.model, self.n_intervals, self.layout) if node == 0]
         lower = [a if x_init[j] >= a - tol else float(x_init[j]) for j, a, _ in starts]
         upper = [b if x_init[j] <= b + tol else float(x_init[j]) for j, _, b in starts]
         return lower, upper
@@ -544,12 +560,16 @@ class Ocp:
         return x, u
 
     def cycle_costs(self, x: np.ndarray, u: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """Weighted cost terms per cycle, shape (n_cycles, n_terms)."""
-        n_terms = len(self.cost_terms)
-        if n_terms == 0:
-            return np.zeros((self.n_cycles, 0))
-        terms = np.asarray(self._terms_fn(x.T, u.T))  # (n_terms, N)
-        return terms.reshape(n_terms, self.n_cycles, self.task.intervals_per_cycle).sum(axis=2).T * weights
+        """Weighted cost terms per cycle, shape (n_cycles, n_terms): the running terms summed over
+        the cycle's intervals, the terminal ones at its last node."""
+        out = np.zeros((self.n_cycles, len(self.cost_terms)))
+        running, terminal = self._running_rows, self._terminal_rows
+        if running:
+            terms = np.asarray(self._terms_fn(x.T, u.T))  # (n_running, N)
+            out[:, running] = terms.reshape(len(running), self.n_cycles, self.task.intervals_per_cycle).sum(axis=2).T
+        if terminal:
+            out[:, terminal] = np.asarray(self._terminal_fn(x.T)).T  # (n_cycles, n_terminal)
+        return out * np.asarray(weights, dtype=float)
 
     # -- solving ----------------------------------------------------------------------------------
 

@@ -17,16 +17,39 @@ import numpy as np
 import pinocchio as pin
 
 from fatigue_pin.robot.dynamics import casadi_aba_derivatives, casadi_dynamics
+from fatigue_pin.robot.units import JointUnits, units_of_kind
 from fatigue_pin.robot.urdf import check_urdf_text, quiet_stderr
 from fatigue_pin.core.errors import DimensionError, ModelError
 from fatigue_pin.core.settings import check_fields, setting
 from fatigue_pin.core.text import shown
 
-#: Joint model short names Pinocchio uses for one-DoF revolute and prismatic joints.
-_SUPPORTED_JOINTS = (
-    "JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
-    "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned",
-)
+#: Joint model short names Pinocchio uses for one-DoF revolute joints, then prismatic ones.
+_REVOLUTE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
+_PRISMATIC_JOINTS = ("JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned")
+_SUPPORTED_JOINTS = _REVOLUTE_JOINTS + _PRISMATIC_JOINTS
+
+
+def joint_kind(joint: pin.JointModel) -> str:
+    """``"revolute"`` or ``"prismatic"`` for a one-DoF Pinocchio joint model (``JointModelR*``,
+    ``JointModelP*``); ModelError for any other joint type."""
+    short = joint.shortname()
+    if short in _REVOLUTE_JOINTS:
+        return "revolute"
+    if short in _PRISMATIC_JOINTS:
+        return "prismatic"
+    raise ModelError(f"joint type {short}: expected a revolute or prismatic joint with one position and one velocity")
+
+
+def joint_kinds_of_urdf(urdf: str) -> dict[str, str]:
+    """Joint name -> kind (``revolute``, ``prismatic``) of every movable joint of a URDF text,
+    from Pinocchio's parse (no dynamics built); ModelError if it does not parse or holds another
+    joint type. Result files that predate the stored kinds get them from their URDF this way."""
+    try:
+        with quiet_stderr():
+            model = pin.buildModelFromXML(urdf)
+    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+        raise ModelError(f"the URDF text does not parse ({' '.join(str(exc).split())})") from None
+    return {model.names[i]: joint_kind(model.joints[i]) for i in range(1, model.njoints)}
 
 
 def bundled_urdf(name: str = "arm26") -> Path:
@@ -198,6 +221,20 @@ class RobotModel:
         return self.frame(frame).velocity
 
     @property
+    def joint_kinds(self) -> tuple[str, ...]:
+        """Kind of every joint of :attr:`joint_names`: ``"revolute"`` (Pinocchio's
+        ``JointModelR*``) or ``"prismatic"`` (``JointModelP*``)."""
+        return tuple(joint_kind(self.pin_model.joints[i]) for i in range(1, self.pin_model.njoints))
+
+    def joint_units(self, joint: int | str) -> JointUnits:
+        """The :class:`JointUnits` of joint ``joint`` (its index in q, v, tau, or its name): rad,
+        rad/s, N m for a revolute joint; m, m/s, N for a prismatic one."""
+        j = self.joint_index(joint) if isinstance(joint, str) else int(joint)
+        if not 0 <= j < self.nv:
+            raise ModelError(f"joint index {j} is not in model {self.name!r}; expected 0 to {self.nv - 1}")
+        return units_of_kind(self.joint_kinds[j])
+
+    @property
     def nq(self) -> int:
         """Number of configuration variables."""
         return self.pin_model.nq
@@ -241,7 +278,9 @@ class RobotModel:
         return {self.pin_model.names[i]: float(self.pin_model.inertias[i].mass) for i in range(1, self.pin_model.njoints)}
 
     def summary(self, q: np.ndarray | None = None) -> str:
-        """Human-readable summary: joints, masses, bounds and holding torques at ``q``.
+        """Human-readable summary: joints, their kinds, masses, bounds and holding efforts at ``q``,
+        each value in its joint's units (:meth:`joint_units`: rad, rad/s, N m for a revolute joint;
+        m, m/s, N for a prismatic one).
 
         The default ``q`` of arm26 is (0.07 rad, 15 deg), the initial posture of the curl task;
         for other models it is the middle of the joint ranges.
@@ -251,19 +290,23 @@ class RobotModel:
         q = self.check_state(q)[0]
         g = self.gravity_torque(q)
         masses = self.body_masses()
+        units = [self.joint_units(j) for j in range(self.nv)]
+        efforts = " and ".join(f"{e}s" for e in dict.fromkeys(u.effort_name for u in units))  # "torques", "forces and torques"
         lines = [
             f"model {self.name} ({self.urdf_path})",
             f"  nq = {self.nq}, nv = {self.nv}, total mass {sum(masses.values()):.4f} kg, "
             f"gravity {tuple(float(x) for x in self.pin_model.gravity.linear)} m/s^2",
-            f"  {'joint':<14}{'mass (kg)':>11}{'q range (rad)':>22}{'|v| max (rad/s)':>17}"
-            f"{'tau range (N m)':>19}{'g(q) (N m)':>13}",
+            f"  {'joint':<14}{'kind':<11}{'mass (kg)':>10}{'q range':>26}{'|v| max':>18}{'effort range':>22}{'g(q)':>15}",
         ]
-        for i, name in enumerate(self.joint_names):
+        for i, (name, u) in enumerate(zip(self.joint_names, units)):
             lines.append(
-                f"  {name:<14}{masses[name]:>11.4f}{f'[{self.q_lower[i]:.4f}, {self.q_upper[i]:.4f}]':>22}"
-                f"{self.v_upper[i]:>17.4f}{f'[{self.tau_lower[i]:.1f}, {self.tau_upper[i]:.1f}]':>19}{g[i]:>13.4f}"
+                f"  {name:<14}{u.kind:<11}{masses[name]:>10.4f}{f'[{self.q_lower[i]:.4f}, {self.q_upper[i]:.4f}] {u.position:<3}':>26}"
+                f"{f'{self.v_upper[i]:.4f} {u.velocity:<5}':>18}{f'[{self.tau_lower[i]:.1f}, {self.tau_upper[i]:.1f}] {u.effort:<3}':>22}"
+                f"{f'{g[i]:.4f} {u.effort:<3}':>15}".rstrip()
             )
-        lines.append(f"  holding torques at q = {np.array2string(q, precision=4)} rad: {np.array2string(g, precision=4)} N m")
+        at = ", ".join(f"{v:.4g} {u.position}" for v, u in zip(q, units))
+        held = ", ".join(f"{v:.4g} {u.effort}" for v, u in zip(g, units))
+        lines.append(f"  holding {efforts} at q = ({at}): ({held})")
         return "\n".join(lines)
 
 

@@ -81,9 +81,9 @@ def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], f
         b_t, at_bt = worst(np.maximum(-sign * tau, sign * tau - np.abs(s.limits)), [h.name for h in s.halves], "interval")
         b_m, at_bm = worst(np.maximum(-s.M, s.M - 1.0), s.state_labels, "node")
     checks = [
-        VerifyCheck("bound q", b_q, "rad", tol.bound, at_bq),
-        VerifyCheck("bound qdot", b_v, "rad/s", tol.bound, at_bv),
-        VerifyCheck("bound torques", b_t, "N m", tol.bound, at_bt),
+        VerifyCheck("bound q", b_q, s.units("position"), tol.bound, at_bq),
+        VerifyCheck("bound qdot", b_v, s.units("velocity"), tol.bound, at_bv),
+        VerifyCheck("bound torques", b_t, s.units("effort"), tol.bound, at_bt),
         VerifyCheck("bound fatigue states in [0, 1]", b_m, "1", tol.bound, at_bm),
     ]
     return checks, max(b_q, b_v, b_t, b_m)

@@ -195,8 +195,8 @@ def gap_checks(s: Stored, dyn: Dynamics, tol: VerifyTolerances, ref: ReferenceIn
         rk4_res, at_res = worst(res, s.x_labels, "interval")
         rk4_trunc, at_trunc = worst(trunc, s.x_labels, "interval")
     checks = [
-        VerifyCheck("gap q", gap_q, "rad", tol.gap, at_q),
-        VerifyCheck("gap qdot", gap_v, "rad/s", tol.gap, at_v),
+        VerifyCheck("gap q", gap_q, s.units("position"), tol.gap, at_q),
+        VerifyCheck("gap qdot", gap_v, s.units("velocity"), tol.gap, at_v),
         VerifyCheck("gap fatigue states", gap_m, "1", tol.gap_fatigue, at_m),
     ]
     rk4_lines = [
@@ -262,8 +262,8 @@ def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report:
     if inv_ss.size:
         report.single_shooting_invariant, report.single_shooting_invariant_final = top, last
     report.checks += [
-        VerifyCheck("single shooting: drift q", dq, "rad", None, at_dq),
-        VerifyCheck("single shooting: drift qdot", dv, "rad/s", None, at_dv),
+        VerifyCheck("single shooting: drift q", dq, s.units("position"), None, at_dq),
+        VerifyCheck("single shooting: drift qdot", dv, s.units("velocity"), None, at_dv),
         VerifyCheck("single shooting: drift fatigue", dm, "1", None, at_dm),
         VerifyCheck("single shooting: invariant there", top, "1", None, f"max over nodes; {last:.3e} at node {N}"),
         VerifyCheck("single shooting: invariant drift", d_inv, "1", None, at_di),

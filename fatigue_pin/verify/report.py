@@ -208,11 +208,12 @@ class VerifyReport:
         """The report as text: one line per check, notes, and the verdict."""
         head = (f"verify {self.run} ({self.horizon}, {self.n_intervals} intervals of {self.dt:g} s"
                 f"{f', {self.substeps} RK4 substeps' if self.substeps else ''}; reference {self.method} rtol {self.rtol:g} atol {self.atol:g})")
-        lines = [head, f"  {'check':<36}{'worst':>11}  {'unit':<7}{'tolerance':>10}  {'result':<12}where"]
+        w = max([7, *(len(c.unit) + 1 for c in self.checks)])  # "rad/s or m/s" for a model with both joint kinds
+        lines = [head, f"  {'check':<36}{'worst':>11}  {'unit':<{w}}{'tolerance':>10}  {'result':<12}where"]
         for c in self.checks:
             value = "-" if not c.checked else f"{c.value:.3e}"
             tol = "-" if c.tolerance is None else f"{c.tolerance:.0e}"
-            lines.append(f"  {c.name:<36}{value:>11}  {c.unit:<7}{tol:>10}  {c.verdict:<12}{c.where}")
+            lines.append(f"  {c.name:<36}{value:>11}  {c.unit:<{w}}{tol:>10}  {c.verdict:<12}{c.where}")
         for note in self.notes:
             lines.append(f"  note: {note}")
         if self.passed:

@@ -101,6 +101,11 @@ class Stored:
     def joints(self) -> list[str]:
         return list(self.run.joint_names)
 
+    def units(self, quantity: str) -> str:
+        """The unit of a joint ``quantity`` (``position``, ``velocity``, ``effort``) over the run's
+        joints: ``rad``, ``m`` or ``rad or m`` (``N m or N``, ...) when the joints' kinds differ."""
+        return " or ".join(dict.fromkeys(getattr(self.run.joint_units(j), quantity) for j in range(len(self.joints))))
+
     @property
     def offsets(self) -> np.ndarray:
         """Start of each half's states in the columns of M (and the end of the last)."""

@@ -8,14 +8,18 @@ One report line per item kind the task holds, the worst violation over its items
 ============================  ================================================  ======
 kind                          violation at a node k of the item                  unit
 ============================  ================================================  ======
-``JointTarget``               ``|q_j,k - value| - tolerance``                    rad
-``JointRange``                ``max(lower - q_j,k, q_j,k - upper)``              rad
+``JointTarget``               ``|q_j,k - value| - tolerance`` (and
+                              ``|qdot_j,k - velocity| - velocity_tolerance``)    rad (rad/s), or m (m/s)
+``StateTarget``               ``|x_s,k - value| - tolerance``, state s by name   its unit
+``JointRange``                ``max(lower - q_j,k, q_j,k - upper)``              rad or m
 ``FrameTarget``               ``FrameTarget.distance(p_k)`` (ball or box)        m
 ``FramePlane``                ``-FramePlane.height(p_k)``                        m
 ``FrameOrientation``          ``angle(R_k, rotation) - tolerance``               rad
 ============================  ================================================  ======
 
-with ``p_k``, ``R_k`` the frame's world position and rotation at node k, and the nodes
+(a joint line's unit is its joints': rad for revolute joints, m for prismatic ones,
+``rad or m`` when its items name both; and rad/s or m/s for velocity targets), with ``p_k``, ``R_k`` the frame's world position and
+rotation at node k, and the nodes
 :meth:`Task.nodes` gives for the item's phase (every node for ranges and planes without a phase);
 for a sliding run, the nodes its windows gave the phase
 (:func:`~fatigue_pin.drivers.sliding.stitched_nodes`: a window's node 0 is its start state).
@@ -28,7 +32,8 @@ feed-forward torques met it to 1e-4. A run that counts no repetition has its tas
 checked", with a note; the initial state keeps ``--task-tol`` (the plant starts at it exactly).
 A kind verify does not know (e.g. a Python :class:`StateConstraint`, whose expression is the
 package's own CasADi) is shown as "not checked", with a note naming it. The initial state is
-checked against the task's initial configuration, zero velocity and every half at rest.
+checked against the task's initial configuration, its initial velocities (``qdot_init``, default
+zero) and every half at rest.
 """
 
 from __future__ import annotations
@@ -40,7 +45,8 @@ from typing import Any, Callable
 import numpy as np
 
 from fatigue_pin.core.errors import FatiguePinError
-from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget
+from fatigue_pin.robot.units import JointUnits
+from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, StateTarget, phase_label
 from fatigue_pin.verify.report import VerifyCheck, worst
 from fatigue_pin.verify.stored import Stored
 from fatigue_pin.core.text import shown
@@ -80,8 +86,10 @@ class _Frames:
 class _Context:
     q: np.ndarray  # (nodes, nq)
     joints: list[str]
+    units: list[JointUnits]  # the units of every joint of ``joints``
     frames: _Frames
     nodes: Callable[[float | None], list[int]]  # nodes of a phase (None: every node)
+    states: dict[str, np.ndarray]  # every state by its layout name ("elbow_q", "elbow_qdot", "elbow_plus_mf"), (nodes,)
 
 
 def _worst_at(values: np.ndarray, nodes: list[int], describe: str) -> Violation:
@@ -100,8 +108,23 @@ def _joint(item, ctx: _Context) -> np.ndarray:
 
 def _joint_target(item: JointTarget, ctx: _Context) -> Violation:
     nodes = ctx.nodes(item.at)
-    v = np.abs(_joint(item, ctx)[nodes] - item.value) - item.tolerance
-    return _worst_at(v, nodes, f"{item.joint} at {item.value:.6g}")
+    out: Violation = (-math.inf, "")
+    if item.value is not None:
+        v = np.abs(_joint(item, ctx)[nodes] - item.value) - item.tolerance
+        out = max(out, _worst_at(v, nodes, f"{item.joint} at {item.value:.6g}"), key=lambda r: r[0])
+    if item.velocity is not None:
+        _joint(item, ctx)
+        v = np.abs(ctx.states[f"{item.joint}_qdot"][nodes] - item.velocity) - item.velocity_tolerance
+        out = max(out, _worst_at(v, nodes, f"{item.joint} moving at {item.velocity:.6g}"), key=lambda r: r[0])
+    return out
+
+
+def _state_target(item: StateTarget, ctx: _Context) -> Violation:
+    if item.state not in ctx.states:
+        raise FatiguePinError(f"state {item.state!r} is not a state of the run {sorted(ctx.states)}")
+    nodes = ctx.nodes(item.at)
+    v = np.abs(ctx.states[item.state][nodes] - item.value) - item.tolerance
+    return _worst_at(v, nodes, f"{item.state} at {item.value:.6g} (phase {phase_label(item.at)})")
 
 
 def _joint_range(item: JointRange, ctx: _Context) -> Violation:
@@ -134,7 +157,8 @@ def _frame_orientation(item: FrameOrientation, ctx: _Context) -> Violation:
 
 @dataclass(frozen=True)
 class Kind:
-    """A task item kind verify checks: its report line, unit and evaluation."""
+    """A task item kind verify checks: its report line, unit ("joint": the position unit of its
+    items' joints) and evaluation."""
 
     line: str
     unit: str
@@ -143,26 +167,42 @@ class Kind:
 
 #: The task item kinds verify checks, in report order.
 KINDS: dict[type, Kind] = {
-    JointTarget: Kind("task joint targets", "rad", _joint_target),
-    JointRange: Kind("task joint ranges", "rad", _joint_range),
+    JointTarget: Kind("task joint targets", "joint", _joint_target),
+    JointRange: Kind("task joint ranges", "joint", _joint_range),
+    StateTarget: Kind("task state targets", "", _state_target),
     FrameTarget: Kind("task frame targets", "m", _frame_target),
     FramePlane: Kind("task frame planes", "m", _frame_plane),
     FrameOrientation: Kind("task frame orientations", "rad", _frame_orientation),
 }
 
 
+def _unit(kind: Kind, items: list, ctx: _Context) -> str:
+    """The unit of a kind's line: its own, or for joint items their joints' (``rad``, ``m``, ``rad
+    or m``; with velocity targets also ``rad/s``, ``m/s``)."""
+    if kind.unit != "joint":
+        return kind.unit
+    units = []
+    for item in items:
+        if item.joint in ctx.joints:
+            u = ctx.units[ctx.joints.index(item.joint)]
+            units += [u.position] if getattr(item, "value", 0.0) is not None else []
+            units += [u.velocity] if getattr(item, "velocity", None) is not None else []
+    return " or ".join(dict.fromkeys(units)) or "rad or m"
+
+
 def _kind_line(kind: Kind, items: list, ctx: _Context, tol: float, notes: list[str]) -> VerifyCheck:
     """The worst violation over the items of one kind (NaN with a note if one cannot be evaluated)."""
+    unit = _unit(kind, items, ctx)
     value, where = -math.inf, ""
     for item in items:
         try:
             v, at = kind.evaluate(item, ctx)
         except FatiguePinError as exc:
             notes.append(f"{kind.line}: {' '.join(str(exc).split())}: not checked")
-            return VerifyCheck(kind.line, float("nan"), kind.unit, tol, "not checked")
+            return VerifyCheck(kind.line, float("nan"), unit, tol, "not checked")
         if v > value:
             value, where = v, at
-    return VerifyCheck(kind.line, max(value, 0.0), kind.unit, tol, where if value > 0 else f"{len(items)} item(s), every node met")
+    return VerifyCheck(kind.line, max(value, 0.0), unit, tol, where if value > 0 else f"{len(items)} item(s), every node met")
 
 
 def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
@@ -176,13 +216,16 @@ def task_checks(s: Stored, tol: float, notes: list[str]) -> list[VerifyCheck]:
     if s.horizon == "mpc":
         item_tol, counted = _closed_loop_scope(s, tol, notes)
         nodes = _within(nodes, counted * s.n) if counted is not None else nodes
-    ctx = _Context(np.asarray(s.run.q, dtype=float), s.joints, _Frames(s.robot.pin_model, np.asarray(s.run.q, dtype=float)),
-                   nodes)
+    q, qdot = np.asarray(s.run.q, dtype=float), np.asarray(s.run.qdot, dtype=float)
+    states = {**{f"{j}_q": q[:, i] for i, j in enumerate(s.joints)}, **{f"{j}_qdot": qdot[:, i] for i, j in enumerate(s.joints)},
+              **{f"{h.name}_{name}": s.M[:, s.offsets[k] + i] for k, h in enumerate(s.halves) for i, name in enumerate(h.states)}}
+    units = [s.run.joint_units(j) for j in range(len(s.joints))]
+    ctx = _Context(q, s.joints, units, _Frames(s.robot.pin_model, q), nodes, states)
     checks = []
     for cls, kind in KINDS.items():
         items = [i for i in task.items if type(i) is cls]
         if items and counted == 0:
-            checks.append(VerifyCheck(kind.line, float("nan"), kind.unit, item_tol, "not checked"))
+            checks.append(VerifyCheck(kind.line, float("nan"), _unit(kind, items, ctx), item_tol, "not checked"))
         elif items:
             checks.append(_kind_line(kind, items, ctx, item_tol, notes))
     unknown: dict[str, int] = {}
@@ -250,13 +293,13 @@ def _phase_nodes(s: Stored, notes: list[str]) -> Callable[[float | None], list[i
 
 
 def _initial_state(s: Stored, tol: float, notes: list[str]) -> VerifyCheck:
-    """abs(x_0 - (q_init, 0, rest state of each half))."""
+    """abs(x_0 - (q_init, qdot_init, rest state of each half))."""
     try:
-        q0 = s.task.initial_configuration(s.robot)
+        q0, v0 = s.task.initial_configuration(s.robot), s.task.initial_velocity(s.robot)
     except FatiguePinError as exc:
         notes.append(f"initial state not checked: {exc}")
         return VerifyCheck("initial state", float("nan"), "", tol, "not checked")
     rest = np.concatenate([h.model.rest_state() for h in s.halves]) if s.halves else np.zeros(0)
-    err = np.concatenate([np.abs(s.run.q[0] - q0), np.abs(s.run.qdot[0]), np.abs(s.M[0] - rest)])
+    err = np.concatenate([np.abs(s.run.q[0] - q0), np.abs(s.run.qdot[0] - v0), np.abs(s.M[0] - rest)])
     value, where = worst(err[None, :], s.x_labels, "node")
     return VerifyCheck("initial state", value, "", tol, where or "node 0")

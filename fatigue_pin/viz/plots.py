@@ -3,9 +3,11 @@ and PDF, every function returns the paths it wrote.
 
 Per OCP run (``<prefix>`` is the run name with '/' replaced by '_'):
 
-* ``<prefix>_joint_angles``: each joint's angle over the cycle, one line per cycle;
+* ``<prefix>_joint_angles``: each joint's position over the cycle, one line per cycle (revolute
+  joints in deg, prismatic joints in m);
 * ``<prefix>_fatigue_states``: stacked ma, mr, mf and the target load TL of every actuator half;
-* ``<prefix>_torque_limits``: available torque (1 - mf) * tau_limit of every half at cycle ends;
+* ``<prefix>_torque_limits``: available torque (1 - mf) * tau_limit of every half at cycle ends
+  (N m; N for the halves of prismatic joints, which exert forces);
 * ``<prefix>_capacity``: (:func:`plot_capacity`, not in :func:`plot_run`) each joint's flexion
   and extension capacity at cycle ends against the peak torque the cycle used and, if given,
   the torque that holds the posture;
@@ -71,22 +73,34 @@ def _cycle_colors(n: int) -> np.ndarray:
 # -- per-run figures -----------------------------------------------------------------------------
 
 
+def _units_word(units: Sequence[str]) -> str:
+    """One axis label's unit for columns of ``units``: the common one, or ``N m or N``."""
+    return " or ".join(dict.fromkeys(units))
+
+
+def _position_label(units) -> str:
+    """``angle (deg)``, ``position (m)``: the y label of a joint's positions (:class:`JointUnits`)."""
+    return f"{units.position_name} ({units.display_position})"
+
+
 def plot_joint_angles(run: RunResult, out_dir: Path) -> list[Path]:
-    """Joint angles (deg) against time within the cycle (s), one line per cycle, one panel per joint."""
+    """Joint positions against time within the cycle (s), one line per cycle, one panel per joint:
+    revolute joints in deg, prismatic joints in m (:meth:`RunResult.joint_units`)."""
     n = run.n_cycles
     colors = _cycle_colors(n)
     fig = _figure(figsize=(6 * len(run.joint_names), 4.2))
     axes = fig.subplots(1, len(run.joint_names), squeeze=False)[0]
     for j, (ax, joint) in enumerate(zip(axes, run.joint_names)):
+        units = run.joint_units(j)
         for c in range(n):
             s = run.cycle_slice(c)
             tc = run.t[s] - run.t[s.start]
             edge = c in (0, n - 1)
-            ax.plot(tc, np.degrees(run.q[s, j]), color=colors[c], lw=2.2 if edge else 0.8, alpha=1.0 if edge else 0.6,
+            ax.plot(tc, units.display(run.q[s, j]), color=colors[c], lw=2.2 if edge else 0.8, alpha=1.0 if edge else 0.6,
                     zorder=3 if edge else 2, label=f"cycle {c + 1}" if edge else None)
         ax.set_title(joint)
         ax.set_xlabel("time in cycle (s)")
-        ax.set_ylabel("angle (deg)")
+        ax.set_ylabel(_position_label(units))
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     if n > 1:
@@ -119,7 +133,7 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
             ax.axvline(run.t[run.cycle_slice(c).start], color="w", lw=0.4, alpha=0.6)
         ax.set_ylim(0.0, 1.05)
         ax.set_xlim(run.t[0], run.t[-1])
-        ax.set_title(f"{name} (limit {run.signed_limits[h]:+g} N m)", fontsize=10)
+        ax.set_title(f"{name} (limit {run.signed_limits[h]:+g} {run.half_units(h).effort})", fontsize=10)
         ax.set_ylabel("fraction (-)")
     for ax in axes[len(halves):]:
         ax.set_visible(False)
@@ -132,7 +146,8 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
 
 
 def plot_torque_limits(run: RunResult, out_dir: Path) -> list[Path]:
-    """Available torque (1 - mf) * tau_limit (N m) of every half at the start and at the end of each cycle."""
+    """Available torque (1 - mf) * tau_limit (N m, or N for a prismatic joint's halves) of every
+    half at the start and at the end of each cycle."""
     lim = run.signed_limits
     cycles = np.arange(0, run.n_cycles + 1)
     fig = _figure(figsize=(9, 5))
@@ -141,11 +156,13 @@ def plot_torque_limits(run: RunResult, out_dir: Path) -> list[Path]:
         values = np.concatenate([[lim[h] * (1.0 - run.fatigued[0, h])], run.torque_limits[:, h]])
         ax = axes[1] if lim[h] < 0 else axes[0]
         ratio = values[0] / values[-1] if values[-1] != 0 else np.inf
-        ax.plot(cycles, values, "o-", ms=3, label=f"{name}: {values[0]:.3g} -> {values[-1]:.3g} N m ({ratio:.3g}x lower)")
+        unit = run.half_units(h).effort
+        ax.plot(cycles, values, "o-", ms=3, label=f"{name}: {values[0]:.3g} -> {values[-1]:.3g} {unit} ({ratio:.3g}x lower)")
+    unit = _units_word([run.half_units(h).effort for h in range(len(run.actuator_names))])
     for ax, kind in zip(axes, ("flexion halves (tau_plus)", "extension halves (tau_minus)")):
         ax.set_title(kind, fontsize=10)
         ax.set_xlabel("end of cycle (0: start)")
-        ax.set_ylabel("torque limit (N m)")
+        ax.set_ylabel(f"torque limit ({unit})")
         ax.grid(alpha=0.3)
         if ax.lines:
             ax.legend(fontsize=7)
@@ -226,7 +243,7 @@ def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
 
 
 def peak_torques(run: RunResult) -> np.ndarray:
-    """Largest |tau| of every half within each cycle (N m, >= 0), (cycles, halves)."""
+    """Largest |tau| of every half within each cycle (N m, or N for a prismatic joint; >= 0), (cycles, halves)."""
     tau = np.abs(run.target_loads() * run.signed_limits)
     n = run.n_cycles
     per = tau.shape[0] // max(n, 1)
@@ -236,8 +253,9 @@ def peak_torques(run: RunResult) -> np.ndarray:
 def plot_capacity(run: RunResult, out_dir: Path, holding: dict[str, float] | None = None,
                   stem: str = "capacity") -> list[Path]:
     """Why a run cannot do one more cycle: for every half, its capacity |(1 - mf) tau_limit| at
-    the end of each cycle (N m) against the largest |torque| the cycle used, and a horizontal line
-    at ``holding[joint]`` (N m, e.g. the gravity torque at the cycle's start posture), if given.
+    the end of each cycle (N m, or N for a prismatic joint) against the largest |torque| the cycle
+    used, and a horizontal line at ``holding[joint]`` (same unit, e.g. the gravity torque at the
+    cycle's start posture), if given.
     One panel per half that does any work."""
     lim = run.signed_limits
     peak = peak_torques(run)
@@ -248,14 +266,16 @@ def plot_capacity(run: RunResult, out_dir: Path, holding: dict[str, float] | Non
     for ax, h in zip(axes, used):
         name = run.actuator_names[h]
         cap = np.abs(run.torque_limits[:, h])
+        units = run.half_units(h)
         ax.plot(cycles, cap, "o-", ms=3, color="tab:blue", label="capacity at cycle end")
         ax.plot(cycles, peak[:, h], "s-", ms=3, color="tab:red", label="peak |torque| in the cycle")
         joint = name.rpartition("_")[0]
         if holding and joint in holding:
-            ax.axhline(abs(holding[joint]), color="k", ls="--", lw=1, label=f"holding torque {abs(holding[joint]):.2f} N m")
-        ax.set_title(f"{name}: {cap[-1]:.3g} N m left, peak {peak[-1, h]:.3g}", fontsize=9)
+            ax.axhline(abs(holding[joint]), color="k", ls="--", lw=1,
+                       label=f"holding {units.effort_name} {abs(holding[joint]):.2f} {units.effort}")
+        ax.set_title(f"{name}: {cap[-1]:.3g} {units.effort} left, peak {peak[-1, h]:.3g}", fontsize=9)
         ax.set_xlabel("cycle")
-        ax.set_ylabel("torque (N m)")
+        ax.set_ylabel(f"{units.effort_name} ({units.effort})")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
@@ -268,7 +288,8 @@ def plot_capacity(run: RunResult, out_dir: Path, holding: dict[str, float] | Non
 
 
 def plot_comparison(runs: Sequence[RunResult], out_dir: Path) -> list[Path]:
-    """Several runs side by side: cycles reached, and the joint angles of each run's last cycle."""
+    """Several runs side by side: cycles reached, and the joint positions of each run's last cycle
+    (deg for revolute joints, m for prismatic ones, as the first run's joints)."""
     fig = _figure(figsize=(12, 4.5))
     ax_n, *ax_q = fig.subplots(1, 1 + len(runs[0].joint_names))
     names = [r.name for r in runs]
@@ -280,11 +301,11 @@ def plot_comparison(runs: Sequence[RunResult], out_dir: Path) -> list[Path]:
         s = r.cycle_slice(r.n_cycles - 1)
         for j, ax in enumerate(ax_q):
             if j < r.q.shape[1]:
-                ax.plot(r.t[s] - r.t[s.start], np.degrees(r.q[s, j]), label=r.name)
-    for ax, joint in zip(ax_q, runs[0].joint_names):
+                ax.plot(r.t[s] - r.t[s.start], r.joint_units(j).display(r.q[s, j]), label=r.name)
+    for j, (ax, joint) in enumerate(zip(ax_q, runs[0].joint_names)):
         ax.set_title(f"{joint}, last cycle", fontsize=10)
         ax.set_xlabel("time in cycle (s)")
-        ax.set_ylabel("angle (deg)")
+        ax.set_ylabel(_position_label(runs[0].joint_units(j)))
         ax.grid(alpha=0.3)
     ax_q[-1].legend(fontsize=6)
     fig.tight_layout()

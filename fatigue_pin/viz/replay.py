@@ -6,6 +6,8 @@ arm26) and, for every actuated joint, two spheres next to the joint: the flexion
 posterior). Each sphere is coloured by the fatigued fraction ``mf`` of its half, green (0) ->
 yellow (0.5) -> red (1); the segment driven by a joint is coloured by the larger ``mf`` of the
 joint's two halves. The motion plays in real time (one frame per node, 0.02 s), cycle after cycle.
+The HTML overlay shows every joint's position as it plays, in its joint's units (deg for a revolute
+joint, m for a prismatic one: :meth:`RunResult.joint_units`).
 
 Three ways to watch a run:
 
@@ -209,6 +211,7 @@ class ReplayScene:
         visualizer: ``meshcat.Visualizer`` whose window records the commands.
         animation: the ``meshcat.animation.Animation`` (poses and colours of every frame).
         frames: per frame, the meshcat path -> placement (4 x 4) and path -> RGB dictionaries.
+        readouts: every joint's position at every frame, as the overlay shows it.
     """
 
     run_name: str
@@ -220,6 +223,7 @@ class ReplayScene:
     visualizer: Any
     animation: Any
     frames: list[tuple[dict[str, np.ndarray], dict[str, np.ndarray]]] = field(repr=False)
+    readouts: tuple["JointReadout", ...] = field(default=(), repr=False)
 
     @property
     def duration_s(self) -> float:
@@ -235,6 +239,33 @@ class ReplayScene:
     def scene_commands(self) -> list[Any]:
         """The recorded meshcat commands that build the scene (objects, first frame, camera)."""
         return list(self.visualizer.window.commands)
+
+
+@dataclass(frozen=True)
+class JointReadout:
+    """One joint's position at every frame of a replay, in the unit it is shown in.
+
+    Attributes:
+        joint: the joint's name.
+        unit: ``deg`` (revolute joint) or ``m`` (prismatic joint), :attr:`JointUnits.display_position`.
+        digits: decimals shown.
+        values: the position at every frame in ``unit``, (n_frames,).
+    """
+
+    joint: str
+    unit: str
+    digits: int
+    values: np.ndarray = field(repr=False)
+
+
+def joint_readouts(run: RunResult, nodes: np.ndarray) -> tuple[JointReadout, ...]:
+    """Every joint's position at ``nodes`` (node indices), revolute joints in deg and prismatic
+    joints in m (:meth:`RunResult.joint_units`)."""
+    out = []
+    for j, joint in enumerate(run.joint_names):
+        u = run.joint_units(j)
+        out.append(JointReadout(joint, u.display_position, u.display_digits, u.display(run.q[nodes, j])))
+    return tuple(out)
 
 
 def _set_camera(vis: Any, target: np.ndarray, eye: np.ndarray) -> None:
@@ -364,7 +395,7 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
             for path, rgb in colors.items():
                 frame[path]["<object>"].set_property("material.color", "color", [float(v) for v in rgb])
 
-    return ReplayScene(run.name, chosen, fps, len(frames), times, spans, vis, anim, frames)
+    return ReplayScene(run.name, chosen, fps, len(frames), times, spans, vis, anim, frames, joint_readouts(run, nodes))
 
 
 # -- static HTML ---------------------------------------------------------------------------------
@@ -374,9 +405,10 @@ _OVERLAY = """
      background:rgba(255,255,255,0.8);padding:6px 10px;border-radius:4px;pointer-events:none">
   <div><b id="fp-title"></b></div>
   <div id="fp-cycle" style="font-size:20px;margin:2px 0"></div>
+  <div id="fp-joints" style="font-size:12px;margin:2px 0;white-space:pre"></div>
   <div style="display:flex;align-items:center;gap:6px">mf 0
     <span style="display:inline-block;width:120px;height:10px;background:linear-gradient(to right,__SCALE__)"></span> 1</div>
-  <div style="font-size:11px">spheres: flexion (front) / extension (back) half of each joint;<br>
+  <div style="font-size:11px">spheres: plus half (front; flexion) / minus half (back; extension) of each joint;<br>
     segments: the more fatigued half of their joint</div>
 </div>
 """
@@ -393,10 +425,16 @@ var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
   }
   document.getElementById("fp-title").textContent = meta.title;
   var label = document.getElementById("fp-cycle");
+  var joints = document.getElementById("fp-joints");
   function update() {
     var acts = viewer.animator.actions, t = acts.length ? acts[0].time : 0, j = 0;
     while (j + 1 < meta.starts.length && t >= meta.starts[j + 1] - 1e-9) j++;
     label.textContent = "cycle " + meta.cycles[j] + " of " + meta.n_cycles + "   t = " + t.toFixed(2) + " s";
+    var lo = 0, hi = meta.times.length - 1;  // the last frame at or before t
+    while (lo < hi) { var mid = (lo + hi + 1) >> 1; if (meta.times[mid] <= t + 1e-9) lo = mid; else hi = mid - 1; }
+    joints.textContent = meta.joints.map(function (q) {
+      return q.name + " " + q.values[lo].toFixed(q.digits) + " " + q.unit;
+    }).join("   ");
     requestAnimationFrame(update);
   }
   update();
@@ -422,6 +460,9 @@ def scene_html(scene: ReplayScene, n_cycles: int, loop: bool = True) -> str:
         "cycles": [c + 1 for c in scene.cycles],
         "n_cycles": n_cycles,
         "starts": [float(s) for s in scene.cycle_start_s],
+        "times": [round(float(t), 6) for t in scene.frame_times_s],
+        "joints": [{"name": r.joint, "unit": r.unit, "digits": r.digits,
+                    "values": [round(float(v), r.digits + 2) for v in r.values]} for r in scene.readouts],
     }
     player = _PLAYER_JS.replace("__META__", json.dumps(meta).replace("</", "<\\/")).replace(
         "__COMMANDS__", json.dumps([_packed(c) for c in commands])

@@ -80,3 +80,52 @@ def test_clear_errors(tmp_path):
         read_run(tmp_path / "d.h5")
     with pytest.raises(ResultFileError, match="'c' is not in"):
         read_run(tmp_path / "d.h5", "c")
+
+
+def _strings(values) -> list[str]:
+    return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
+
+
+def test_joint_kinds_and_units_round_trip(tmp_path):
+    from conftest import make_pendulum_run
+
+    run = make_pendulum_run()
+    path = write_run(tmp_path / "p.h5", run)
+    with h5py.File(path) as h5:
+        g = h5[run.name]
+        assert _strings(g["q"].attrs["joint_kinds"]) == ["prismatic", "revolute"]
+        assert _strings(g["q"].attrs["units"]) == ["m", "rad"] and g["q"].attrs["unit"] == "mixed"
+        assert _strings(g["qdot"].attrs["units"]) == ["m/s", "rad/s"]
+        assert _strings(g["tau_halves"].attrs["units"]) == ["N", "N", "N m", "N m"] == _strings(g["torque_limits"].attrs["units"])
+    back = read_run(path)
+    assert back.joint_kinds == ("prismatic", "revolute")
+    assert back.joint_units("slider").effort == "N" and back.half_units("pendulum_minus").effort == "N m"
+    write_run(tmp_path / "a.h5", make_run())  # every joint revolute: one unit per dataset, as before
+    with h5py.File(tmp_path / "a.h5") as h5:
+        assert h5["full/torque_S10/q"].attrs["unit"] == "rad" and h5["full/torque_S10/tau_halves"].attrs["unit"] == "N m"
+
+
+@pytest.mark.parametrize("urdf, kinds", [(None, ("prismatic", "revolute")),  # from the stored URDF
+                                         ("", ("revolute", "revolute")),  # none stored: revolute
+                                         ("<robot name='x'/>", ("revolute", "revolute"))])  # the URDF lacks the joints
+def test_files_without_joint_kinds_still_read(tmp_path, urdf, kinds):
+    """Runs written before the kinds were stored: kinds from the run's URDF, else revolute."""
+    from conftest import make_pendulum_run
+
+    run = make_pendulum_run(urdf=urdf)
+    path = write_run(tmp_path / "old.h5", run)
+    with h5py.File(path, "a") as h5:
+        for name in ("q", "qdot", "tau_halves", "torque_limits"):
+            del h5[run.name][name].attrs["units"]
+        del h5[run.name]["q"].attrs["joint_kinds"]
+    back = read_run(path)
+    assert back.joint_kinds == kinds
+    np.testing.assert_array_equal(back.q, run.q)
+
+
+def test_a_stored_unknown_joint_kind_is_refused(tmp_path):
+    path = write_run(tmp_path / "bad.h5", make_run())
+    with h5py.File(path, "a") as h5:
+        h5["full/torque_S10/q"].attrs["joint_kinds"] = ["revolute", "spherical"]
+    with pytest.raises(ResultFileError, match=r"joint kinds \['revolute', 'spherical'\]: expected one of"):
+        read_run(path)

@@ -22,6 +22,7 @@ HEADINGS = {
     "## `[task]` (required)": "task",
     "### `[[task.targets]]`: joint targets": "task.targets (joint)",
     "### `[[task.targets]]`: frame targets": "task.targets (frame)",
+    "### `[[task.targets]]`: state targets": "task.targets (state)",
     "### `[[task.ranges]]`": "task.ranges",
     "### `[[task.planes]]`": "task.planes",
     "## `[transcription]`": "transcription",

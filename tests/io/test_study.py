@@ -279,3 +279,52 @@ def test_a_key_given_as_none_is_a_key_not_given():
     study = Study.from_dict(data)
     assert study.data["task"]["targets"] == given
     assert Study.from_toml(study.to_toml()).data == study.data
+
+
+#: The example with a frame target holding an orientation (its tolerance key: angle_tolerance).
+WITH_ORIENTATION = EXAMPLE.replace('[costs]', '[[task.targets]]\nframe = "r_ulna_radius_hand"\nrpy = [0.0, 0.0, 0.5]\n'
+                                             'angle_tolerance = 0.2\nat = 0.5\n[costs]', 1)
+
+
+@pytest.mark.parametrize("dotted, old, new", [
+    ("task.targets[1].tolerance", "value = 2.618\nat = 0.5", "value = 2.618\nat = 0.5\ntolerance = 0.1"),
+    ("task.targets[0].value", "value = 0.2618 ", "value = 0.1 "),
+    ("task.targets[2].angle_tolerance", "angle_tolerance = 0.2", "angle_tolerance = 0.1"),
+    ("task.q_init[1]", "q_init = [0.07, 0.2618]", "q_init = [0.07, 0.1]"),
+])
+def test_set_reaches_elements_of_arrays_as_messages_name_them(dotted, old, new):
+    """``task.targets[1].tolerance`` is the second target's tolerance: the name an error message
+    gives it (indices from 0), and the same study as the TOML edited by hand."""
+    text = WITH_ORIENTATION.replace("\n    ", "\n")
+    assert old in text
+    by_key = Study.from_toml(text).replace({dotted: 0.1})
+    by_hand = Study.from_toml(text.replace(old, new, 1))
+    assert by_key == by_hand and by_key != Study.from_toml(text)
+    bad = {"tolerance": -0.1, "angle_tolerance": 9.0}.get(dotted.rsplit(".", 1)[-1])
+    if bad is not None:  # the message names the key the way --set takes it
+        with pytest.raises(StudyError) as err:
+            Study.from_toml(text).replace({dotted: bad}).problem()
+        assert dotted in str(err.value)
+
+
+def test_set_of_an_element_through_the_command_line(tmp_path):
+    from fatigue_pin.io.study import parse_changes
+
+    study = small_curl("full")
+    changed = study.replace(parse_changes(["task.targets[1].tolerance=0.05"]))
+    data = study.data
+    data["task"]["targets"][1]["tolerance"] = 0.05
+    assert changed == Study.from_dict(data) and changed.to_toml().count("tolerance = 0.05") == 1
+
+
+@pytest.mark.parametrize("dotted, message", [
+    ("task.targets[9].x", r"^study key 'task.targets\[9\].x': index \[9\] is out of range; task.targets has 2 elements, \[0\] to \[1\]$"),
+    ("task.ranges[0].lower", r"index \[0\] is out of range; task.ranges has no elements$"),
+    ("task.targets[-1].value", r"index \[-1\] is not an integer >= 0"),
+    ("task.cycle_duration[0]", r"task.cycle_duration is not an array"),
+    ("fatigue.S.x", r"^study key 'fatigue.S.x' does not exist$"),
+    ("task.targets[1]x.value", r"does not exist"),
+])
+def test_set_of_a_missing_element_is_one_line(dotted, message):
+    with pytest.raises(StudyError, match=message):
+        Study.from_toml(EXAMPLE).replace({dotted: 1.0})

@@ -87,7 +87,7 @@ def test_errors_name_the_value(study):
     assert "model.payload.mass = -1.0" in _error(study, {"model.payload.mass": -1.0})
     msg = _error(study, {"task.q_init": [0.0, -1.2, 1.0, -1.4, -1.57, 0.0]})
     assert "outside its phase-0 target" in msg and "task.q_init" in msg
-    with pytest.raises(StudyError, match=r"task.targets\[0\]: expected either joint \+ value .* or frame \+ position"):
+    with pytest.raises(StudyError, match=r"task.targets\[0\]: expected either joint \+ value .*, frame \+ position"):
         study.replace({"task.targets": [{"at": 0.0}]})
     with pytest.raises(StudyError, match=r"task.targets\[0\].shape = 'cube'"):
         study.replace({"task.targets": [{**targets[0], "shape": "cube"}]})

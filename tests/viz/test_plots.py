@@ -120,3 +120,34 @@ def test_figures_draw_the_run_s_data(monkeypatch, tmp_path: Path) -> None:
     drawn = [np.asarray(line.get_ydata()) for ax in figures[-1].axes for line in ax.get_lines()]
     expected = np.concatenate([[50.0 * (1 - run.fatigued[0, 2])], run.torque_limits[:, 2]])
     assert any(d.shape == expected.shape and np.allclose(d, expected) for d in drawn)
+
+
+def test_a_prismatic_joint_is_plotted_in_metres(monkeypatch, tmp_path: Path) -> None:
+    """The slider's positions are drawn as stored (m), the pendulum's in deg; its halves' limits in N."""
+    from conftest import make_pendulum_run
+
+    run = read_run(write_run(tmp_path / "p.h5", make_pendulum_run(cycles=3)))
+    figures = _drawn(monkeypatch)
+    plots.plot_joint_angles(run, tmp_path)
+    slider, pendulum = figures[-1].axes[:2]
+    assert (slider.get_title(), slider.get_ylabel()) == ("slider", "position (m)")
+    assert (pendulum.get_title(), pendulum.get_ylabel()) == ("pendulum", "angle (deg)")
+    for c in range(3):
+        s = run.cycle_slice(c)
+        np.testing.assert_array_equal(slider.get_lines()[c].get_ydata(), run.q[s, 0])
+        np.testing.assert_allclose(pendulum.get_lines()[c].get_ydata(), np.degrees(run.q[s, 1]))
+    plots.plot_fatigue_states(run, tmp_path)
+    titles = [ax.get_title() for ax in figures[-1].axes[:4]]
+    assert titles == ["slider_plus (limit +50 N)", "slider_minus (limit -50 N)", "pendulum_plus (limit +50 N m)",
+                      "pendulum_minus (limit -50 N m)"]
+    plots.plot_torque_limits(run, tmp_path)
+    assert {ax.get_ylabel() for ax in figures[-1].axes} == {"torque limit (N or N m)"}
+    legend = [t.get_text() for t in figures[-1].axes[0].get_legend().get_texts()]
+    assert legend[0].startswith("slider_plus: 50 -> ") and " N (" in legend[0] and " N m (" in legend[1]
+    plots.plot_capacity(run, tmp_path, holding={"slider": 2.0})
+    assert [ax.get_ylabel() for ax in figures[-1].axes[:2]] == ["force (N)", "force (N)"]
+    assert "holding force 2.00 N" in [t.get_text() for t in figures[-1].axes[0].get_legend().get_texts()]
+    plots.plot_comparison([run, run], tmp_path)
+    comparison = figures[-1].axes[1]
+    assert comparison.get_ylabel() == "position (m)"
+    np.testing.assert_array_equal(comparison.get_lines()[0].get_ydata(), run.q[run.cycle_slice(2), 0])

@@ -119,3 +119,21 @@ def test_serve_plays_and_obeys_the_prompt(run: RunResult, capsys: pytest.Capture
     assert "http://127.0.0.1:" in out
     assert out.count("cycle 1") == 1 and out.count("cycle 2\n") == 1
     assert "not a cycle number between 1 and 2: '9'" in out
+
+
+def test_the_overlay_shows_each_joint_in_its_unit(tmp_path: Path) -> None:
+    """A prismatic joint's position is shown in m as stored, a revolute one's in deg, at every frame."""
+    from conftest import make_pendulum_run
+    from fatigue_pin.viz.replay import build_animation, export_html
+
+    run = read_run(write_run(tmp_path / "p.h5", make_pendulum_run(cycles=2, n=10)))
+    scene = build_animation(run)
+    slider, pendulum = scene.readouts
+    assert (slider.joint, slider.unit, pendulum.joint, pendulum.unit) == ("slider", "m", "pendulum", "deg")
+    np.testing.assert_array_equal(slider.values, run.q[:, 0])  # consecutive cycles: one frame per node
+    np.testing.assert_allclose(pendulum.values, np.degrees(run.q[:, 1]))
+    html = export_html(run, tmp_path / "replay.html").read_text()
+    meta = json.loads(re.search(r"var meta = (\{.*?\});\n", html).group(1))
+    assert [(j["name"], j["unit"]) for j in meta["joints"]] == [("slider", "m"), ("pendulum", "deg")]
+    np.testing.assert_allclose(meta["joints"][0]["values"], run.q[:, 0], atol=1e-5)
+    assert len(meta["times"]) == scene.n_frames and "fp-joints" in html
