@@ -237,3 +237,20 @@ def test_the_compiled_library_solves_passive_and_active_as_uncompiled(pendulum, 
     assert ("F_rb_active" in ocp.library.names) == (coupling == "active")
     assert sol.objective == pytest.approx(reference.objective, rel=1e-9)
     np.testing.assert_allclose(sol.x, reference.x, atol=1e-8)
+
+
+def test_the_bioptim_pendulum_study_reaches_bioptims_optimum(tmp_path):
+    """studies/bioptim_pendulum_xia.toml (the passive pendulum, the ``observed`` coupling) on
+    bioptim's grid: bioptim's objective for its example, 41.58259 (issue 32), and the same with
+    ``tl+mf<=1``, whose row is inactive there."""
+    from fatigue_pin.io.study import run_study
+
+    study = Study.from_file(URDF.parents[1] / "studies" / "bioptim_pendulum_xia.toml").replace({"solver.compile": False})
+    for coupling in ("observed", "tl+mf<=1"):
+        out = tmp_path / f"{coupling.replace('<=', '_')}.h5"
+        run_study(study.replace({"actuators.coupling": coupling}), out)
+        run = read_run(out)
+        assert run.converged and run.attrs["coupling"] == coupling
+        assert run.attrs["objective"] == pytest.approx(41.58259, rel=1e-5)
+        assert run.actuator_names == ("slider_plus", "slider_minus")
+        np.testing.assert_allclose(run.q[-1], [0.0, 3.14], atol=1e-8)
