@@ -43,6 +43,7 @@ from typing import Callable, Mapping
 import casadi as ca
 import numpy as np
 
+from fatigue_pin.ocp import bounds
 from fatigue_pin.ocp.blocks import MappedCall, differentiated_inputs, nlp_derivatives
 from fatigue_pin.ocp.guesses import GUESSES, initial_guess
 from fatigue_pin.core.errors import ParameterError
@@ -302,11 +303,20 @@ class Ocp:
             opti.subject_to(opti.bounded(0, mapped(fn.coupling, N + 1, X, ca.horzcat(U, U[:, N - 1]), how=()), 1))
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
+        self._task_rows(opti, X, params)
+        opti.minimize(self._objective(X, U, P_weights, mapped))
+        return opti
+
+    def _task_rows(self, opti: ca.Opti, X: ca.MX, params: ParameterLayout) -> None:
+        """The task's rows of g: joint targets as rows (``target_rows``; node 0 with parametric
+        bounds) and the state constraints (StateConstraints, frame targets, planes) with
+        parametric bounds at their nodes. Sets :attr:`kept_rows` and the state constraints."""
+        N, nx = self.n_intervals, self.layout.nx
         #: rows of g that stay constraints although they bound one variable (``target_rows``)
         self.kept_rows: tuple[int, ...] = ()
         if self.transcription.target_rows:
             first = opti.g.numel()
-            pairs = joint_target_pairs(self.task, self.model, N, layout)
+            pairs = joint_target_pairs(self.task, self.model, N, self.layout)
             starts = [(j, a, b) for node, j, a, b in pairs if node == 0]
             if starts:  # bounds of the node-0 rows: the targets widened to the start (parameter_vector)
                 S_lb, S_ub = params.add("start_targets_lb", len(starts)), params.add("start_targets_ub", len(starts))
@@ -315,7 +325,7 @@ class Ocp:
             self.kept_rows = tuple(range(first, opti.g.numel()))
         # state constraints of the task: expression rows with parametric bounds
         self._state_constraints = []
-        for sc in self.task.expression_constraints(self.model, layout):  # StateConstraints, frame targets, planes
+        for sc in self.task.expression_constraints(self.model, self.layout):  # StateConstraints, frame targets, planes
             if sc.expression.size1_in(0) != nx:
                 raise ParameterError(f"task state constraint {sc.name!r} takes {sc.expression.size1_in(0)} inputs; expected nx = {nx}")
             nodes = self.task.nodes(sc.at, N)
@@ -325,6 +335,11 @@ class Ocp:
             values = sc.expression.map(len(nodes))(X[:, nodes])
             opti.subject_to(opti.bounded(lb, values, ub))
             self._state_constraints.append((sc, nodes))
+
+    def _objective(self, X: ca.MX, U: ca.MX, P_weights: ca.MX, mapped: Callable[..., ca.MX]) -> ca.MX:
+        """The objective from X (nx, N+1), U (nu, N) and the weights; sets the cost-term
+        functions of :meth:`cycle_costs`."""
+        fn, N, nx, nu = self.functions, self.n_intervals, self.layout.nx, self.layout.nu
         # objective: weighted named terms summed over intervals (running) and over the ends of
         # the phases (terminal); the same functions of (X, U) give the per-cycle costs
         running, terminal = self._running_rows, self._terminal_rows
@@ -341,8 +356,7 @@ class Ocp:
             ends = self.end_nodes
             self._terminal_fn = ca.Function("end_terms", [Xn], [fn.terminal.map(len(ends))(Xn[:, ends])])
             objective = objective + ca.dot(P_weights[terminal], ca.sum2(fn.terminal.map(len(ends))(X[:, ends])))
-        opti.minimize(objective)
-        return opti
+        return objective
 
     @property
     def _running_rows(self) -> list[int]:
@@ -428,40 +442,10 @@ class Ocp:
         return x_init
 
     def state_bounds(self, x_init: np.ndarray, x_end: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Node-wise state bounds, each of shape (nx, N+1).
-
-        Model bounds on q and qdot, [0, 1] on fatigue states, joint ranges, the joint targets at
-        their nodes, ``x_init`` at node 0 (it wins over a target there: the start state of a
-        window is the previous window's state at the join, which misses the phase-0 target when
-        the join is not one of its nodes, e.g. ``final_node_offset = -1`` with ``advance =
-        window``) and, with ``end_tolerance`` set and ``x_end`` given, q and qdot at the last node
-        within ``x_end +- end_tolerance * range``.
-        """
-        L, N, model = self.layout, self.n_intervals, self.model
-        nf = L.n_fatigue
-        lo = np.concatenate([model.q_lower, model.v_lower, np.zeros(nf)])
-        hi = np.concatenate([model.q_upper, model.v_upper, np.ones(nf)])
-        X_lb = np.tile(lo[:, None], (1, N + 1))
-        X_ub = np.tile(hi[:, None], (1, N + 1))
-        for rng in self.task.joint_ranges:
-            j = model.joint_names.index(rng.joint)
-            X_lb[j, :] = np.maximum(X_lb[j, :], rng.lower)
-            X_ub[j, :] = np.minimum(X_ub[j, :], rng.upper)
-        # with target_rows the targets are rows of g (:meth:`_formulate`), not bounds
-        targets = [] if self.transcription.target_rows else joint_target_pairs(self.task, self.model, N, L)
-        for node, j, a, b in targets:
-            X_lb[j, node], X_ub[j, node] = a, b
-        tol = self.end_tolerance
-        if tol is not None and x_end is not None:
-            rows = np.r_[np.arange(L.nq), L.nq + np.arange(L.nv)]
-            span = (hi - lo)[rows]
-            X_lb[rows, N] = np.maximum(X_lb[rows, N], x_end[rows] - tol * span)
-            X_ub[rows, N] = np.minimum(X_ub[rows, N], x_end[rows] + tol * span)
-            for node, j, a, b in targets:  # task targets at the last node win over the end box
-                if node == N:
-                    X_lb[j, node], X_ub[j, node] = a, b
-        X_lb[:, 0] = X_ub[:, 0] = x_init  # last: node 0 is the start state, whatever the task puts there
-        return X_lb, X_ub
+        """Node-wise state bounds, each (nx, N+1): :func:`fatigue_pin.ocp.bounds.state_bounds`
+        with this Ocp's model, task, grid, ``target_rows`` and ``end_tolerance``."""
+        return bounds.state_bounds(self.model, self.task, self.layout, self.n_intervals, x_init, x_end,
+                                   target_rows=self.transcription.target_rows, end_tolerance=self.end_tolerance)
 
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of the actuator halves, each of shape (nu, N)."""
@@ -494,37 +478,11 @@ class Ocp:
             "X_lb": X_lb, "X_ub": X_ub, "U_lb": U_lb, "U_ub": U_ub,
         }
         if "start_targets_lb" in self.params.names:
-            values["start_targets_lb"], values["start_targets_ub"] = self._start_target_rows(x_init)
+            values["start_targets_lb"], values["start_targets_ub"] = bounds.start_target_bounds(
+                self.task, self.model, self.n_intervals, self.layout, x_init, self.solver_options.constr_viol_tol)
         for sc, nodes in self._state_constraints:
-            values[f"{sc.name}_lb"], values[f"{sc.name}_ub"] = self._state_constraint_bounds(sc, nodes, x_init)
+            values[f"{sc.name}_lb"], values[f"{sc.name}_ub"] = bounds.constraint_bounds(sc, nodes, x_init)
         return self.params.vector(values)
-
-    @staticmethod
-    def _state_constraint_bounds(sc, nodes: list[int], x_init: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Bounds of a task state constraint's rows (frame targets, planes, orientations,
-        :class:`~fatigue_pin.ocp.task.StateConstraint`), each (rows, len(nodes)). At node 0 they
-        are widened to the start state's value h(x_init) where it lies outside them: node 0 is
-        fixed to ``x_init`` (:meth:`state_bounds`), so a row there decides nothing and only makes
-        the NLP infeasible when the start misses it (a closed loop's measured state below a
-        plane or off a frame target; docs/mpc.md). A start that meets the row keeps its bounds."""
-        lower = np.tile(np.asarray(sc.lower, dtype=float).reshape(-1, 1), (1, len(nodes)))
-        upper = np.tile(np.asarray(sc.upper, dtype=float).reshape(-1, 1), (1, len(nodes)))
-        if nodes and nodes[0] == 0:
-            value = np.asarray(sc.expression(x_init), dtype=float).reshape(-1)
-            lower[:, 0] = np.minimum(lower[:, 0], value)
-            upper[:, 0] = np.maximum(upper[:, 0], value)
-        return lower, upper
-
-    def _start_target_rows(self, x_init: np.ndarray) -> tuple[list[float], list[float]]:
-        """Bounds of the node-0 target rows (``target_rows``): the targets, widened to the start
-        state where it misses one by more than ``constr_viol_tol`` (the start state wins, as in
-        :meth:`state_bounds`; a start that meets the target within IPOPT's tolerance keeps the
-        row the paper's code has, violated by that little)."""
-        tol = self.solver_options.constr_viol_tol
-        starts = [(j, a, b) for node, j, a, b in joint_target_pairs(self.task, self.model, self.n_intervals, self.layout) if node == 0]
-        lower = [a if x_init[j] >= a - tol else float(x_init[j]) for j, a, _ in starts]
-        upper = [b if x_init[j] <= b + tol else float(x_init[j]) for j, _, b in starts]
-        return lower, upper
 
     def weight_vector(self, weights: Mapping[str, float] | np.ndarray | None = None) -> np.ndarray:
         """Cost weights in :attr:`cost_terms` order from a mapping by name (or a full vector)."""

@@ -13,6 +13,7 @@ from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.paper.curl import curl_study
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
+from fatigue_pin.ocp.bounds import constraint_bounds
 from fatigue_pin.ocp.transcription import Ocp, Transcription
 
 COST_TERMS = ("posture", "torque_rate", "fatigue", "torque")
@@ -292,6 +293,6 @@ def test_a_start_that_misses_a_node_0_row_is_not_infeasible(small_problem, build
     np.testing.assert_allclose(sol.x[0], x_init, atol=1e-12)
     assert min(height(x) for x in sol.x[1:]) >= plane.offset - 1e-6
     sc, nodes = ocp._state_constraints[0]
-    lower, upper = ocp._state_constraint_bounds(sc, nodes, x_init)
+    lower, upper = constraint_bounds(sc, nodes, x_init)
     assert lower[0, 0] == pytest.approx(height(x_init)) and np.all(lower[0, 1:] == plane.offset) and np.all(upper == np.inf)
-    assert np.all(ocp._state_constraint_bounds(sc, nodes, x0)[0] == plane.offset)  # a start above keeps the row
+    assert np.all(constraint_bounds(sc, nodes, x0)[0] == plane.offset)  # a start above keeps the row
