@@ -209,19 +209,27 @@ COMMANDS: dict[tuple[str, str], list[tuple[str, str]]] = {
     ("sweeps.md", "fatigue-pin sweep studies/paper_reproduce.toml --out results/paper_sweep"):
         [("studies/paper_reproduce.toml", "small_sweep.toml"), ("--out", "--workers 1 --out")],
 }
+#: Arguments after :data:`SMALL`, by (page, command): the pendulum's LD = 100 needs RK4 steps of at
+#: most 0.025 s, 4 per interval of the small grid.
+AFTER: dict[tuple[str, str], list[str]] = {
+    ("porting.md", "fatigue-pin run studies/bioptim_pendulum_xia.toml --out pendulum.h5"): ["--set", "transcription.substeps=4"],
+    ("porting.md", "fatigue-pin run studies/bioptim_pendulum_xia.toml --out fine.h5 --set transcription.substeps=20"):
+        ["--set", "transcription.substeps=20"],
+}
 #: Commands that take minutes even on small settings: marked slow.
 SLOW = {("getting-started.md", ".venv/bin/fatigue-pin demo"),
         ("mpc.md", "fatigue-pin mpc studies/ur5_mpc.toml --out ur5_mpc.h5 --set horizon.max_cycles=4")}  # > 10 min on 2 cores
 
 
 def _shrunk(page: str, command: str) -> list[str]:
-    """The command's arguments after its substitutions, with :data:`SMALL` after ``run`` and ``mpc``."""
+    """The command's arguments after its substitutions, with :data:`SMALL` (then :data:`AFTER`) after
+    ``run`` and ``mpc``."""
     for old, new in COMMANDS.get((page, command), []):
         assert old in command, f"{page}: {command}: the substitution {old!r} no longer matches"
         command = command.replace(old, new, 1)
     words = shlex.split(command)[1:]
     if words[0] in ("run", "mpc"):
-        words += SMALL
+        words += SMALL + AFTER.get((page, command), [])
     return words
 
 
