@@ -4,7 +4,7 @@ OCPs of one problem for any number of cycles (:class:`OcpBuilder`, shared by eve
 from __future__ import annotations
 
 from fatigue_pin.ocp.problem import Problem
-from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.solver import SolverOptions, resolve_first_compile
 from fatigue_pin.ocp.task import check_horizon
 from fatigue_pin.ocp.transcription import IntervalFunctions, Ocp, OcpSolution, Transcription
 
@@ -42,10 +42,13 @@ def solve_full(problem: Problem, n_cycles: int, transcription: Transcription | N
                guess: str = "rest", progress: Progress = None, end_tolerance: float | None = None) -> tuple[Ocp, OcpSolution]:
     """Build and solve one full-horizon OCP of ``n_cycles`` cycles (``progress``: a Reporter or
     a line callback; default quiet). ``end_tolerance``: bound q and qdot at the last node to the
-    initial state +- this fraction of their range (the authors' full horizon does, with 0.01)."""
+    initial state +- this fraction of their range (the authors' full horizon does, with 0.01).
+    ``solver.first_compile = "auto"`` compiles in the background on a short horizon
+    (:func:`fatigue_pin.ocp.solver.resolve_first_compile`)."""
     check_horizon(problem.task, n_cycles)
     rep = as_reporter(progress)
     rep.line(f"building the {n_cycles}-cycle OCP of {problem.model.name} ...")
+    solver = resolve_first_compile(solver or SolverOptions(), n_cycles * problem.task.intervals_per_cycle)
     ocp = OcpBuilder(problem, transcription, solver, guess, rep)(n_cycles, end_tolerance)
     compiled = f", compiled in {ocp.compile_time_s:.1f} s" if ocp.compile_time_s else ""
     rep.line(f"built in {ocp.build_time_s:.1f} s{compiled}; solving with IPOPT ...")

@@ -69,6 +69,9 @@ NLP_FUNCTIONS = ("nlp_f", "nlp_g", "nlp_grad_f", "nlp_jac_g", "nlp_hess_l", "nlp
 #: at -O3 -march=native). Set from measured builds on 2 cores: arm26's library in about 5 s, the
 #: Panda's (9 DoF) in about 81 s; the earlier 25 000 announced 26 s and 380 s for them.
 _COMPILE_BYTES_PER_S = 120_000.0
+#: The same for one large file (gcc slows down on long functions): the pendulum's 1.06 MB Hessian
+#: block of its rigid body took 16 s at -O3 -march=native, where the rate above gives 9 s.
+_LARGE_FILE_BYTES_PER_S = 65_000.0
 _DERIVATIVE = re.compile(r"(fwd[1-9][0-9]*_|adj[1-9][0-9]*_|jac_)")
 
 Progress = Callable[[str], None]
@@ -364,11 +367,20 @@ def compile_shared(sources: Sequence[Path], target: Path, options: BuildOptions)
     return flags
 
 
+def expected_compile_s(sizes: Sequence[int], jobs: int) -> float:
+    """About how long compiling C files of these ``sizes`` (bytes) takes with ``jobs`` compiler
+    processes (s): the total at :data:`_COMPILE_BYTES_PER_S` per process, or the largest file
+    alone at :data:`_LARGE_FILE_BYTES_PER_S` when it takes longer (one process compiles it)."""
+    if not sizes:
+        return 0.0
+    return max(sum(sizes) / _COMPILE_BYTES_PER_S / max(1, min(jobs, len(sizes))), max(sizes) / _LARGE_FILE_BYTES_PER_S)
+
+
 @contextlib.contextmanager
-def _announce(progress: Progress | None, what: str, source_bytes: int, jobs: int, once: str) -> Iterator[None]:
+def _announce(progress: Progress | None, what: str, sources: Sequence[Path], options: BuildOptions, once: str) -> Iterator[None]:
     """Say what is compiled and about how long it takes; with a
     :class:`~fatigue_pin.core.progress.Reporter`, a live line (or heartbeat lines) while it runs."""
-    seconds = max(1.0, source_bytes / _COMPILE_BYTES_PER_S / jobs)
+    seconds = max(1.0, expected_compile_s([src.stat().st_size for src in sources], options.resolved_jobs()))
     seconds = round(seconds, -1) if seconds > 30 else round(seconds)
     text = f"compiling {what} ({once})"
     task = getattr(progress, "task", None)
@@ -449,7 +461,8 @@ class FunctionLibrary:
         progress: Progress | None = None,
         description: str | None = None,
         plain: Mapping[str, ca.Function] | Sequence[ca.Function] = (),
-    ) -> FunctionLibrary:
+        background: bool = False,
+    ) -> FunctionLibrary | None:
         """Find the library of ``functions`` in the cache, or generate, compile and cache it.
 
         Args:
@@ -465,6 +478,9 @@ class FunctionLibrary:
             description: what the progress line calls the functions (default: ``name``).
             plain: functions compiled as they are, without derivative functions (their names
                 must differ from those of ``functions``).
+            background: on a cache miss, write the C and compile it in a detached process
+                (:mod:`fatigue_pin.ocp.background`) and return None at once: the caller goes on
+                with the uncompiled functions, and a later build finds the library cached.
         """
         options = options or BuildOptions()
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
@@ -478,7 +494,7 @@ class FunctionLibrary:
         entry = options.resolved_cache_dir() / f"{name}_{key}.so"
         t0 = time.perf_counter()
 
-        def build(tmp_so: Path) -> None:
+        def write_sources(folder: Path) -> list[Path]:
             sources = []
             compiled_names = {prefix + fname for fname in named for prefix in ("", *spec[fname])} | set(extra)
             units = [g for fname, f in named.items() for g in derivative_functions(f, spec[fname])] + list(extra.values())
@@ -487,11 +503,23 @@ class FunctionLibrary:
                 # with its Jacobian sparsity (symbols jac_<g>_sparsity_*), so that the NLP keeps
                 # its exact pattern, unless jac_<g> itself is compiled (it gives the pattern)
                 generator.add(g, "jac_" + g.name() not in compiled_names)
-                sources.append(Path(generator.generate(str(tmp_so.parent) + os.sep)))
-            size = sum(src.stat().st_size for src in sources)
-            with _announce(progress, description or name, size, min(options.resolved_jobs(), len(sources)), "once per machine"):
+                sources.append(Path(generator.generate(str(folder) + os.sep)))
+            return sources
+
+        def build(tmp_so: Path) -> None:
+            sources = write_sources(tmp_so.parent)
+            with _announce(progress, description or name, sources, options, "once per machine"):
                 compile_shared(sources, tmp_so, options)
 
+        if background and not verify_entry(entry):
+            from fatigue_pin.ocp.background import start
+
+            started = start(entry, write_sources, options)
+            if progress is not None:
+                what = description or name
+                progress(f"compiling {what} in the background (once per machine); this run is solved without compiled code"
+                         if started else f"{what} are being compiled by another process; this run is solved without compiled code")
+            return None
         built = cached_build(entry, build)
         spec.update({fname: () for fname in extra})
         return cls(name, key, entry, tuple(named) + tuple(extra), spec, time.perf_counter() - t0 if built else 0.0)

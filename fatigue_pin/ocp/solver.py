@@ -23,7 +23,7 @@ import os
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -44,6 +44,11 @@ COMPILE_MODES = ("library", "nlp")
 HESSIANS = ("exact", "gauss-newton", "one-step", "euler-step")
 #: How the rigid body's Jacobian block is taken (:attr:`SolverOptions.dynamics_jacobian`).
 DYNAMICS_JACOBIANS = ("analytical", "automatic")
+#: What a build does when the model's library is not cached yet (:attr:`SolverOptions.first_compile`).
+FIRST_COMPILES = ("auto", "wait", "background")
+#: ``first_compile = "auto"`` compiles in the background for full-horizon solves of at most this
+#: many intervals (see :func:`resolve_first_compile`).
+BACKGROUND_MAX_INTERVALS = 60
 #: IPOPT options of a warm-started solve (:meth:`NlpSolver.solve` with ``warm_start``): start
 #: from the given primal and dual point, pushed 1e-3 off the bounds, with barrier 1e-2 (on the small
 #: curl: 30 % fewer iterations than cold windows; 1e-4 and 1e-6 gave 10-20 %).
@@ -168,6 +173,14 @@ class SolverOptions:
             spin against the ``thread`` maps of the interval functions: the UR5 window of
             docs/ocp.md "Robot-scale speed" took 130 against 177 ms per iteration, with a third of
             its CPU time spent in the kernel before.
+        first_compile: what a library-mode build does when the model's library is not in the
+            cache yet: ``wait`` compiles it, then solves; ``background`` starts the compile in a
+            detached process (:mod:`fatigue_pin.ocp.background`) and solves this run with the
+            uncompiled functions, so the next run finds the library; ``auto`` (default) is
+            ``background`` for a full-horizon solve of at most :data:`BACKGROUND_MAX_INTERVALS`
+            intervals (:func:`resolve_first_compile`) and ``wait`` otherwise (sliding windows,
+            searches and longer horizons use the library many times over). The pendulum study's
+            first run on 2 cores: 1.9 s against 15 s (docs/ocp.md, "Compiled code").
     """
 
     linear_solver: str = setting("mumps", "an IPOPT linear solver name (e.g. 'mumps')", is_str)
@@ -190,6 +203,7 @@ class SolverOptions:
     hessian: str = setting("exact", "'exact', 'one-step', 'euler-step' or 'gauss-newton'", lambda v: v in HESSIANS)
     dynamics_jacobian: str = setting("analytical", "'analytical' or 'automatic'", lambda v: v in DYNAMICS_JACOBIANS)
     blas_threads: int = setting(1, "a number of threads >= 1, or 0 (as the environment sets it)", lambda v: is_int(v) and v >= 0)
+    first_compile: str = setting("auto", "'auto', 'wait' or 'background'", lambda v: v in FIRST_COMPILES)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -231,6 +245,14 @@ class SolverOptions:
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-code cache (:func:`fatigue_pin.ocp.compiled.cache_folder`)."""
         return cache_folder(self.cache_dir)
+
+
+def resolve_first_compile(options: SolverOptions, n_intervals: int) -> SolverOptions:
+    """``options`` for a full-horizon solve of ``n_intervals`` intervals, with ``first_compile =
+    "auto"`` made ``background`` (at most :data:`BACKGROUND_MAX_INTERVALS` intervals) or ``wait``."""
+    if options.first_compile != "auto":
+        return options
+    return replace(options, first_compile="background" if n_intervals <= BACKGROUND_MAX_INTERVALS else "wait")
 
 
 def limit_blas_threads(threads: int) -> bool:

@@ -162,7 +162,7 @@ class Ocp:
         library_compile_s = 0.0
         if library_mode and self.functions.library is None:
             self._build_library(progress)
-            library_compile_s = self.functions.library.compile_time_s
+            library_compile_s = self.functions.library.compile_time_s if self.functions.library else 0.0
         opti = self._formulate()
         if self._uses_blocks and self.functions.library is None and not self.functions.blocks:  # uncompiled
             self.functions.build_blocks(self._differentiated_inputs(opti.x), self.solver_options.hessian,
@@ -248,8 +248,10 @@ class Ocp:
         name = re.sub(r"[^A-Za-z0-9_]", "_", f"{self.model.name}_intervals")
         library = FunctionLibrary.build(functions, name, self.solver_options.build_options(), derivatives=derivatives,
                                         progress=progress, description=f"the {self.model.name} interval functions",
-                                        plain=plain + self.functions.block_functions())
-        self.functions.use(library)
+                                        plain=plain + self.functions.block_functions(),
+                                        background=self.solver_options.first_compile == "background")
+        if library is not None:  # else compiling in the background: this build stays uncompiled
+            self.functions.use(library)
 
     def _block_derivatives(self, nlp: Mapping[str, ca.MX]) -> dict[str, ca.Function] | None:
         """nlpsol's ``jac_g`` and ``hess_lag`` from the interval functions' derivative blocks
