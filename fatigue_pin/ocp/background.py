@@ -23,7 +23,10 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
+
+if TYPE_CHECKING:
+    from fatigue_pin.ocp.compiled import BuildOptions
 
 
 def compiling(entry: Path) -> bool:
@@ -42,7 +45,7 @@ def compiling(entry: Path) -> bool:
     return False
 
 
-def start(entry: Path, write_sources: Callable[[Path], Sequence[Path]], options) -> bool:
+def start(entry: Path, write_sources: Callable[[Path], Sequence[Path]], options: BuildOptions) -> bool:
     """Start compiling ``entry`` in a detached process; return False if one is already under way.
 
     Args:
