@@ -141,7 +141,7 @@ def test_authors_code_last_node(arm26):
 
 def test_compiled_solve_matches_uncompiled(small_problem, build, tmp_path):
     plain = build(1).solve()
-    compiled_ocp = Ocp(small_problem, 1, build.transcription, SolverOptions(cache_dir=tmp_path, compile_mode="nlp", compiler_flags=("-O1",)))
+    compiled_ocp = Ocp(small_problem, 1, build.transcription, SolverOptions(cache_dir=tmp_path, compile_mode="nlp", compiler_flags=("-O0",)))
     assert compiled_ocp.nlp.compiled_path is not None and compiled_ocp.nlp.compiled_path.exists()
     compiled = compiled_ocp.solve()
     assert compiled.success and compiled.objective == pytest.approx(plain.objective, rel=1e-6)
@@ -149,7 +149,7 @@ def test_compiled_solve_matches_uncompiled(small_problem, build, tmp_path):
     assert compiled_ocp.map_mode == "openmp" and plain.status == compiled.status
     assert b"GOMP_parallel" in compiled_ocp.nlp.compiled_path.read_bytes()
     # a second build finds the library in the cache instead of compiling again
-    again = Ocp(small_problem, 1, build.transcription, SolverOptions(cache_dir=tmp_path, compile_mode="nlp", compiler_flags=("-O1",)))
+    again = Ocp(small_problem, 1, build.transcription, SolverOptions(cache_dir=tmp_path, compile_mode="nlp", compiler_flags=("-O0",)))
     assert again.nlp.compile_time_s == 0.0 and again.nlp.compiled_path == compiled_ocp.nlp.compiled_path
 
 
