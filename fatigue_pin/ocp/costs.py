@@ -256,35 +256,33 @@ def velocity(weight: float, joints: Sequence[str] | None = None, name: str = "ve
     return CostTerm(name, weight, lambda v: _per_joint(v, js, w, v.qdot), _options(js, w, at), "velocity", at)
 
 
+def _halves_term(kind: str, weight: float, name: str, joints: Sequence[str] | None, joint_weights: Sequence[float] | None,
+                 every: Callable, of_joint: Callable, at: str | None = None) -> CostTerm:
+    """A term over actuator halves: ``every(v)`` over all of them, or with ``joints``
+    ``sum_j c_j |of_joint(v)(j)|^2`` over the named joints' halves."""
+    js = _joints(name, joints)
+    w = _weights(name, js, joint_weights)
+    value = every if js is None else (lambda v: _per_joint(v, js, w, of_joint(v)))
+    return CostTerm(name, weight, value, _options(js, w, at), kind, at)
+
+
 def torque_rate(weight: float, name: str = "torque_rate", joints: Sequence[str] | None = None,
                 joint_weights: Sequence[float] | None = None) -> CostTerm:
     """``|u_k - u_{k-1}|^2`` over the halves of ``joints`` (every half by default; N^2 m^2 or N^2)."""
-    js = _joints(name, joints)
-    w = _weights(name, js, joint_weights)
-    if js is None:
-        return CostTerm(name, weight, lambda v: ca.sumsqr(v.u - v.u_prev), {}, "torque_rate")
-    return CostTerm(name, weight, lambda v: _per_joint(v, js, w, lambda j: v.tau_halves(j) - v.tau_halves_prev(j)),
-                    _options(js, w, None), "torque_rate")
+    return _halves_term("torque_rate", weight, name, joints, joint_weights, lambda v: ca.sumsqr(v.u - v.u_prev),
+                        lambda v: lambda j: v.tau_halves(j) - v.tau_halves_prev(j))
 
 
 def fatigue(weight: float, name: str = "fatigue", joints: Sequence[str] | None = None, joint_weights: Sequence[float] | None = None,
             at: str | None = None) -> CostTerm:
     """``sum_h mf_h^2``: the fatigued fraction of every half (of ``joints``) squared."""
-    js = _joints(name, joints)
-    w = _weights(name, js, joint_weights)
-    if js is None:
-        return CostTerm(name, weight, lambda v: ca.sumsqr(v.fatigued), _options(None, None, at), "fatigue", at)
-    return CostTerm(name, weight, lambda v: _per_joint(v, js, w, v.fatigued_of), _options(js, w, at), "fatigue", at)
+    return _halves_term("fatigue", weight, name, joints, joint_weights, lambda v: ca.sumsqr(v.fatigued), lambda v: v.fatigued_of, at)
 
 
 def torque(weight: float, name: str = "torque", joints: Sequence[str] | None = None,
            joint_weights: Sequence[float] | None = None) -> CostTerm:
     """``|u_k|^2`` over the halves of ``joints`` (every half by default; N^2 m^2 or N^2)."""
-    js = _joints(name, joints)
-    w = _weights(name, js, joint_weights)
-    if js is None:
-        return CostTerm(name, weight, lambda v: ca.sumsqr(v.u), {}, "torque")
-    return CostTerm(name, weight, lambda v: _per_joint(v, js, w, v.tau_halves), _options(js, w, None), "torque")
+    return _halves_term("torque", weight, name, joints, joint_weights, lambda v: ca.sumsqr(v.u), lambda v: v.tau_halves)
 
 
 def state(weight: float, states: Sequence[str] = (), targets: Sequence[float] | None = None, name: str = "state",
