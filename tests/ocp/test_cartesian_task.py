@@ -136,6 +136,7 @@ def _check_targets(run, study: Study) -> None:
     assert min(heights) >= 0.05 - 1e-6
 
 
+@pytest.mark.slow  # 30 s on 2 cores; by default the robot-study page's sliding carry runs from the CLI and verify checks its result
 def test_small_carry_study_meets_its_targets_sliding(tmp_path, study):
     """The carry study in sliding horizon (2-cycle windows, 3 cycles kept) from the command line."""
     out = tmp_path / "carry.h5"
