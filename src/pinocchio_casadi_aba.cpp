@@ -16,7 +16,7 @@ namespace fatigue_pin
   std::string serialized_sx_aba(const pinocchio::Model & model)
   {
     // Same model (inertias, placements, gravity, ...) with every number turned into an SX constant.
-    const ADModel ad_model = model.cast<SX>();
+    const ADModel ad_model = fixed_base_model(model).cast<SX>();
     ADData ad_data(ad_model);
     const ConfigSymbol q("q", model.nq);
     const TangentSymbol v("v", model.nv), tau("tau", model.nv);

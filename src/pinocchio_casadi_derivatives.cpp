@@ -15,7 +15,7 @@ namespace fatigue_pin
 {
   std::string serialized_sx_aba_derivatives(const pinocchio::Model & model)
   {
-    const ADModel ad_model = model.cast<SX>();
+    const ADModel ad_model = fixed_base_model(model).cast<SX>();
     ADData ad_data(ad_model);
     const ConfigSymbol q("q", model.nq);
     const TangentSymbol v("v", model.nv), tau("tau", model.nv);

@@ -25,7 +25,7 @@ namespace fatigue_pin
         "frame id " + std::to_string(frame_id) + " is not a frame of the model (it has "
         + std::to_string(model.frames.size()) + " frames)");
 
-    const ADModel ad_model = model.cast<SX>();
+    const ADModel ad_model = fixed_base_model(model).cast<SX>();
     ADData ad_data(ad_model);
     const std::string & name = model.frames[frame_id].name;
 

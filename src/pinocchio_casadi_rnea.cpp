@@ -14,7 +14,7 @@ namespace fatigue_pin
 {
   std::string serialized_sx_rnea(const pinocchio::Model & model)
   {
-    const ADModel ad_model = model.cast<SX>();
+    const ADModel ad_model = fixed_base_model(model).cast<SX>();
     ADData ad_data(ad_model);
     const ConfigSymbol q("q", model.nq);
     const TangentSymbol v("v", model.nv), a("a", model.nv);
