@@ -1,9 +1,9 @@
 """Compiling a cache entry in a detached process, while the run that needed it goes on uncompiled.
 
 A first run of a small model spends most of its time compiling: the pendulum of
-``studies/bioptim_pendulum_xia.toml`` compiles its interval functions in about 15 s on 2 cores
+``studies/bioptim_pendulum_xia.toml`` compiles its interval functions in 20-25 s on 2 cores
 and then solves in 0.1 s, where CasADi's virtual machine solves the same NLP, uncompiled, in
-about 1.5 s. With ``solver.first_compile = "background"`` (what ``auto`` picks for a small
+about 1.2 s (``benchmarks/first_run.py``). With ``solver.first_compile = "background"`` (what ``auto`` picks for a small
 full-horizon solve, :func:`fatigue_pin.ocp.solver.resolve_first_compile`) a cache miss writes the
 generated C into a folder beside the cache entry and starts ``python -m
 fatigue_pin.ocp.background <job.json>`` in a new session, so that it outlives the run and a

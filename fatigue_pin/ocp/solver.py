@@ -180,7 +180,7 @@ class SolverOptions:
             ``background`` for a full-horizon solve of at most :data:`BACKGROUND_MAX_INTERVALS`
             intervals (:func:`resolve_first_compile`) and ``wait`` otherwise (sliding windows,
             searches and longer horizons use the library many times over). The pendulum study's
-            first run on 2 cores: 1.9 s against 15 s (docs/ocp.md, "Compiled code").
+            first run on 2 cores: 3.2 s against 22.7-26 s (docs/ocp.md, "Compiled code").
     """
 
     linear_solver: str = setting("mumps", "an IPOPT linear solver name (e.g. 'mumps')", is_str)
