@@ -50,6 +50,14 @@ _API: dict[str, str] = {
     "EnduranceData": "fatigue_pin.fatigue.calibration",
     "calibrate": "fatigue_pin.fatigue.calibration",
     "read_endurance_csv": "fatigue_pin.fatigue.calibration",
+    # muscles
+    "Muscle": "fatigue_pin.muscles.muscle",
+    "PathPoint": "fatigue_pin.muscles.muscle",
+    "CylinderWrap": "fatigue_pin.muscles.wraps",
+    "WrapUse": "fatigue_pin.muscles.wraps",
+    "MuscleSet": "fatigue_pin.muscles.muscle_set",
+    "MuscleGeometry": "fatigue_pin.muscles.geometry",
+    "load_muscles": "fatigue_pin.muscles.files",
     # optimal control problem
     "SignedTorqueActuators": "fatigue_pin.ocp.actuators",
     "Actuation": "fatigue_pin.ocp.actuation",
