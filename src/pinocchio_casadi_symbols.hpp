@@ -5,59 +5,34 @@
 
 #include <stdexcept>
 #include <string>
-#include <type_traits>
-
-#include <boost/mpl/contains.hpp>
 
 namespace fatigue_pin
 {
   /// The joints a fixed-base URDF gives Pinocchio: revolute, continuous (unbounded revolute) and
-  /// prismatic, about a frame axis or any axis (what fatigue_pin.robot.model accepts). Pinocchio's
-  /// algorithms instantiated on casadi::SX for these 12 types (and the Mimic joint, which
-  /// Model::addJoint needs in every collection) instead of its default 25 take about half the
-  /// compiler time and two thirds of the memory (the ABA unit: 43 s against 95 s of CPU, 1.9
-  /// against 3.0 GB).
+  /// prismatic (what fatigue_pin.robot.model accepts), each as its any-axis type: a joint about a
+  /// frame axis becomes the same joint about that unit axis. Pinocchio's algorithms are then
+  /// instantiated on casadi::SX for 3 joint types (and the Mimic joint, which Model::addJoint needs
+  /// in every collection) instead of its default 25. SX folds the products by the axis' zeros and
+  /// ones, so the expressions are the aligned joints' to rounding; the compiler's time and memory
+  /// fall with the number of types (benchmarks/install_results_2cores_idle.txt).
   template<typename _Scalar, int _Options>
   struct FixedBaseJointCollectionTpl
   {
     typedef _Scalar Scalar;
     static constexpr int Options = _Options;
-    typedef pinocchio::JointModelRevoluteTpl<Scalar, Options, 0> JointModelRX;
-    typedef pinocchio::JointModelRevoluteTpl<Scalar, Options, 1> JointModelRY;
-    typedef pinocchio::JointModelRevoluteTpl<Scalar, Options, 2> JointModelRZ;
     typedef pinocchio::JointModelRevoluteUnalignedTpl<Scalar, Options> JointModelRevoluteUnaligned;
-    typedef pinocchio::JointModelRevoluteUnboundedTpl<Scalar, Options, 0> JointModelRUBX;
-    typedef pinocchio::JointModelRevoluteUnboundedTpl<Scalar, Options, 1> JointModelRUBY;
-    typedef pinocchio::JointModelRevoluteUnboundedTpl<Scalar, Options, 2> JointModelRUBZ;
     typedef pinocchio::JointModelRevoluteUnboundedUnalignedTpl<Scalar, Options> JointModelRevoluteUnboundedUnaligned;
-    typedef pinocchio::JointModelPrismaticTpl<Scalar, Options, 0> JointModelPX;
-    typedef pinocchio::JointModelPrismaticTpl<Scalar, Options, 1> JointModelPY;
-    typedef pinocchio::JointModelPrismaticTpl<Scalar, Options, 2> JointModelPZ;
     typedef pinocchio::JointModelPrismaticUnalignedTpl<Scalar, Options> JointModelPrismaticUnaligned;
-    // Pinocchio's Model::addJoint expects the Mimic joint in every collection
     typedef pinocchio::JointModelMimicTpl<Scalar, Options, FixedBaseJointCollectionTpl> JointModelMimic;
-    typedef boost::variant<JointModelRX, JointModelRY, JointModelRZ, JointModelRevoluteUnaligned, JointModelRUBX,
-                           JointModelRUBY, JointModelRUBZ, JointModelRevoluteUnboundedUnaligned, JointModelPX,
-                           JointModelPY, JointModelPZ, JointModelPrismaticUnaligned,
+    typedef boost::variant<JointModelRevoluteUnaligned, JointModelRevoluteUnboundedUnaligned, JointModelPrismaticUnaligned,
                            boost::recursive_wrapper<JointModelMimic>>
       JointModelVariant;
 
-    typedef pinocchio::JointDataRevoluteTpl<Scalar, Options, 0> JointDataRX;
-    typedef pinocchio::JointDataRevoluteTpl<Scalar, Options, 1> JointDataRY;
-    typedef pinocchio::JointDataRevoluteTpl<Scalar, Options, 2> JointDataRZ;
     typedef pinocchio::JointDataRevoluteUnalignedTpl<Scalar, Options> JointDataRevoluteUnaligned;
-    typedef pinocchio::JointDataRevoluteUnboundedTpl<Scalar, Options, 0> JointDataRUBX;
-    typedef pinocchio::JointDataRevoluteUnboundedTpl<Scalar, Options, 1> JointDataRUBY;
-    typedef pinocchio::JointDataRevoluteUnboundedTpl<Scalar, Options, 2> JointDataRUBZ;
     typedef pinocchio::JointDataRevoluteUnboundedUnalignedTpl<Scalar, Options> JointDataRevoluteUnboundedUnaligned;
-    typedef pinocchio::JointDataPrismaticTpl<Scalar, Options, 0> JointDataPX;
-    typedef pinocchio::JointDataPrismaticTpl<Scalar, Options, 1> JointDataPY;
-    typedef pinocchio::JointDataPrismaticTpl<Scalar, Options, 2> JointDataPZ;
     typedef pinocchio::JointDataPrismaticUnalignedTpl<Scalar, Options> JointDataPrismaticUnaligned;
     typedef pinocchio::JointDataMimicTpl<Scalar, Options, FixedBaseJointCollectionTpl> JointDataMimic;
-    typedef boost::variant<JointDataRX, JointDataRY, JointDataRZ, JointDataRevoluteUnaligned, JointDataRUBX,
-                           JointDataRUBY, JointDataRUBZ, JointDataRevoluteUnboundedUnaligned, JointDataPX,
-                           JointDataPY, JointDataPZ, JointDataPrismaticUnaligned,
+    typedef boost::variant<JointDataRevoluteUnaligned, JointDataRevoluteUnboundedUnaligned, JointDataPrismaticUnaligned,
                            boost::recursive_wrapper<JointDataMimic>>
       JointDataVariant;
   };
@@ -65,16 +40,41 @@ namespace fatigue_pin
   using FixedBaseModel = pinocchio::ModelTpl<double, 0, FixedBaseJointCollectionTpl>;
   using FixedBaseJoint = pinocchio::JointModelTpl<double, 0, FixedBaseJointCollectionTpl>;
 
+  /// A joint of Pinocchio's default collection as its any-axis type of the fixed-base collection.
   struct ToFixedBaseJoint : boost::static_visitor<FixedBaseJoint>
   {
+    using Axis = Eigen::Vector3d;
+    template<int axis>
+    FixedBaseJoint operator()(const pinocchio::JointModelRevoluteTpl<double, 0, axis> &) const
+    {
+      return FixedBaseJoint(pinocchio::JointModelRevoluteUnalignedTpl<double, 0>(Axis::Unit(axis)));
+    }
+    template<int axis>
+    FixedBaseJoint operator()(const pinocchio::JointModelRevoluteUnboundedTpl<double, 0, axis> &) const
+    {
+      return FixedBaseJoint(pinocchio::JointModelRevoluteUnboundedUnalignedTpl<double, 0>(Axis::Unit(axis)));
+    }
+    template<int axis>
+    FixedBaseJoint operator()(const pinocchio::JointModelPrismaticTpl<double, 0, axis> &) const
+    {
+      return FixedBaseJoint(pinocchio::JointModelPrismaticUnalignedTpl<double, 0>(Axis::Unit(axis)));
+    }
+    FixedBaseJoint operator()(const pinocchio::JointModelRevoluteUnalignedTpl<double, 0> & joint) const
+    {
+      return FixedBaseJoint(joint);
+    }
+    FixedBaseJoint operator()(const pinocchio::JointModelRevoluteUnboundedUnalignedTpl<double, 0> & joint) const
+    {
+      return FixedBaseJoint(joint);
+    }
+    FixedBaseJoint operator()(const pinocchio::JointModelPrismaticUnalignedTpl<double, 0> & joint) const
+    {
+      return FixedBaseJoint(joint);
+    }
     template<typename J>
     FixedBaseJoint operator()(const J & joint) const
     {
-      if constexpr (boost::mpl::contains<FixedBaseJointCollectionTpl<double, 0>::JointModelVariant::types, J>::value
-                    && !std::is_same<J, typename FixedBaseJointCollectionTpl<double, 0>::JointModelMimic>::value)
-        return FixedBaseJoint(joint);
-      else
-        throw std::invalid_argument("joint type " + joint.shortname() + " is not supported (revolute, continuous and prismatic joints are)");
+      throw std::invalid_argument("joint type " + joint.shortname() + " is not supported (revolute, continuous and prismatic joints are)");
     }
   };
 
