@@ -57,9 +57,12 @@ _API: dict[str, str] = {
     "WrapUse": "fatigue_pin.muscles.wraps",
     "MuscleSet": "fatigue_pin.muscles.muscle_set",
     "MuscleGeometry": "fatigue_pin.muscles.geometry",
+    "FixedMomentArms": "fatigue_pin.muscles.geometry",
     "load_muscles": "fatigue_pin.muscles.files",
     # optimal control problem
     "SignedTorqueActuators": "fatigue_pin.ocp.actuators",
+    "ActuationLayer": "fatigue_pin.ocp.actuation_layer",
+    "MuscleActuators": "fatigue_pin.ocp.muscle_actuators",
     "Actuation": "fatigue_pin.ocp.actuation",
     "Task": "fatigue_pin.ocp.task",
     "JointTarget": "fatigue_pin.ocp.task_items",

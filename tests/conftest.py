@@ -149,3 +149,27 @@ def swing_up(model, *items, costs=None, n: int = 10, cycles: int = 1, **task):
     task.setdefault("q_init", (0.0, 0.0))
     return Problem.build(model, fatigue_model("xia", LD=100.0, LR=100.0, F=5.0, R=10.0), Task(1.0, n, items, **task),
                          costs if costs is not None else [torque(1.0)])
+
+
+@pytest.fixture(scope="session")
+def arm26_muscles():
+    """The bundled arm26 muscles (urdf/arm26.muscles.toml)."""
+    from fatigue_pin.muscles.files import load_muscles
+
+    return load_muscles("arm26")
+
+
+@pytest.fixture(scope="session")
+def arm26_geometry(arm26, arm26_muscles):
+    """Their paths with the humeral cylinder TRI."""
+    from fatigue_pin.muscles.geometry import MuscleGeometry
+
+    return MuscleGeometry(arm26.pin_model, arm26_muscles)
+
+
+@pytest.fixture(scope="session")
+def arm26_geometry_unwrapped(arm26, arm26_muscles):
+    """Their paths as straight segments between the points."""
+    from fatigue_pin.muscles.geometry import MuscleGeometry
+
+    return MuscleGeometry(arm26.pin_model, arm26_muscles.without_wraps())

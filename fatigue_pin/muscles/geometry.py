@@ -28,7 +28,7 @@ from fatigue_pin.muscles.muscle_set import MuscleSet
 from fatigue_pin.muscles.wraps import wrapped_length
 from fatigue_pin.robot.kinematics import frame_functions
 
-__all__ = ["MuscleGeometry"]
+__all__ = ["MuscleGeometry", "FixedMomentArms"]
 
 
 class MuscleGeometry:
@@ -93,4 +93,31 @@ class MuscleGeometry:
 
     def joint_torque(self, q: ca.SX, forces: ca.SX) -> ca.SX:
         """``r(q)^T F`` (nv,) (N m) of tendon forces ``F`` (nm,) (N)."""
+        return ca.mtimes(self.moment_arms(q).T, forces)
+
+
+class FixedMomentArms:
+    """Paths with constant moment arms: ``L(q) = L0 - r q``, ``r(q) = r``, ``Ldot = -r qdot``: the
+    geometry of an idealised joint actuator, and a check of the muscle layer against torque
+    actuators (the same functions as :class:`MuscleGeometry`).
+
+    Args:
+        moment_arms: (nm, nv) (m).
+        lengths_at_zero: L0 (nm,) (m), the lengths at q = 0.
+    """
+
+    def __init__(self, moment_arms: np.ndarray, lengths_at_zero: np.ndarray) -> None:
+        r = np.atleast_2d(np.asarray(moment_arms, dtype=float))
+        L0 = np.asarray(lengths_at_zero, dtype=float).reshape(-1)
+        if L0.shape != (r.shape[0],):
+            raise ParameterError(f"lengths_at_zero has {L0.size} entries; expected one per muscle ({r.shape[0]})")
+        nm, nv = r.shape
+        q, v = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
+        R = ca.DM(r)
+        self.lengths = ca.Function("muscle_lengths", [q], [ca.DM(L0) - ca.mtimes(R, q)], ["q"], ["L"])
+        self.moment_arms = ca.Function("muscle_moment_arms", [q], [R + 0 * ca.repmat(ca.sum1(q), nm, nv)], ["q"], ["r"])
+        self.speeds = ca.Function("muscle_speeds", [q, v], [-ca.mtimes(R, v)], ["q", "v"], ["Ldot"])
+
+    def joint_torque(self, q: ca.SX, forces: ca.SX) -> ca.SX:
+        """``r^T F`` (nv,) (N m)."""
         return ca.mtimes(self.moment_arms(q).T, forces)

@@ -30,7 +30,6 @@ The symbolic methods accept CasADi SX, MX or DM and numpy arrays, and return Cas
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from typing import Protocol, Union
 
@@ -40,6 +39,7 @@ import numpy as np
 from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.ocp.actuation import COUPLINGS, Actuation
+from fatigue_pin.ocp.actuation_layer import ActuationLayer, column
 from fatigue_pin.ocp.halves import ActuatorHalf, FatigueGroup
 from fatigue_pin.fatigue.models import FatigueParams
 from fatigue_pin.core.text import shown
@@ -58,19 +58,7 @@ class _HasTorqueLimits(Protocol):
     tau_upper: np.ndarray
 
 
-def _column(x: Expr, n: int, what: str) -> Expr:
-    """Return ``x`` as a CasADi column of length ``n`` (numpy -> DM)."""
-    if isinstance(x, (ca.SX, ca.MX, ca.DM)):
-        if x.shape not in ((n, 1), (1, n)) and not (n == 1 and x.numel() == 1):
-            raise DimensionError(f"{what} of shape {x.shape}: expected {n} entries")
-        return x if x.shape[1] == 1 else x.T
-    a = np.asarray(x, dtype=float).reshape(-1)
-    if a.shape != (n,):
-        raise DimensionError(f"{what} of shape {np.shape(x)}: expected {n} entries")
-    return ca.DM(a)
-
-
-class SignedTorqueActuators:
+class SignedTorqueActuators(ActuationLayer):
     """Signed torque actuators of a model: a plus and a minus half per actuated joint, each with
     its fatigue model; passive joints have none.
 
@@ -217,16 +205,6 @@ class SignedTorqueActuators:
     # -- sizes and names -----------------------------------------------------------------------
 
     @property
-    def halves(self) -> tuple[ActuatorHalf, ...]:
-        """The halves, ``(j0_plus, j0_minus, j1_plus, ...)`` (actuated joints only)."""
-        return self._halves
-
-    @property
-    def joint_names(self) -> tuple[str, ...]:
-        """Every joint of the model in model order (length nv), passive ones included."""
-        return self._joint_names
-
-    @property
     def actuated_joints(self) -> tuple[str, ...]:
         """The joints with halves, in model order (length na)."""
         return self._actuated
@@ -237,16 +215,6 @@ class SignedTorqueActuators:
         return tuple(j for j in self._joint_names if j not in self._actuated)
 
     @property
-    def coupling_kind(self) -> str:
-        """How torque and fatigue are coupled, one of :data:`COUPLINGS`."""
-        return self._coupling
-
-    @property
-    def nv(self) -> int:
-        """Number of joints (passive ones included)."""
-        return len(self._joint_names)
-
-    @property
     def n_actuated(self) -> int:
         """Number of actuated joints (na)."""
         return len(self._actuated)
@@ -255,88 +223,6 @@ class SignedTorqueActuators:
     def nu(self) -> int:
         """Number of controls (``2 * na``: the plus halves' torques, then the minus halves')."""
         return 2 * self.n_actuated
-
-    @property
-    def n_halves(self) -> int:
-        """Number of halves (``2 * na``)."""
-        return len(self._halves)
-
-    @property
-    def n_states(self) -> int:
-        """Number of fatigue states (the sum over halves of their model's states)."""
-        return sum(h.params.n_states() for h in self._halves)
-
-    @property
-    def n_params(self) -> int:
-        """Length of :meth:`param_vector` (the sum over halves of their model's parameters)."""
-        return sum(h.params.n_params() for h in self._halves)
-
-    @property
-    def half_names(self) -> tuple[str, ...]:
-        """``("j0_plus", "j0_minus", ...)``."""
-        return tuple(h.name for h in self._halves)
-
-    @property
-    def state_names(self) -> tuple[str, ...]:
-        """Fatigue state names ``("j0_plus_ma", "j0_plus_mr", "j0_plus_mf", "j0_minus_ma", ...)`` (dimensionless)."""
-        return tuple(f"{h.name}_{s}" for h in self._halves for s in h.params.state_names)
-
-    @property
-    def fatigue_state_kinds(self) -> tuple[str, ...]:
-        """Every state name declared by the halves' models, in first-seen order (e.g. ``ma, mr, mf``)."""
-        return tuple(dict.fromkeys(s for h in self._halves for s in h.params.state_names))
-
-    def state_offsets(self) -> list[int]:
-        """Offset of each half's states in the fatigue state vector, length n_halves."""
-        offsets, k = [], 0
-        for h in self._halves:
-            offsets.append(k)
-            k += h.params.n_states()
-        return offsets
-
-    def param_offsets(self) -> list[int]:
-        """Offset of each half's parameters in :meth:`param_vector`, length n_halves."""
-        offsets, k = [], 0
-        for h in self._halves:
-            offsets.append(k)
-            k += h.params.n_params()
-        return offsets
-
-    def state_rows(self, state: str) -> list[int | None]:
-        """Row of state ``state`` of each half in the fatigue state vector (``None`` for a half whose
-        model has no such state), length n_halves."""
-        return [off + h.params.state_names.index(state) if state in h.params.state_names else None
-                for h, off in zip(self._halves, self.state_offsets())]
-
-    def fatigued_rows(self) -> list[int]:
-        """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
-        return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
-
-    def active_rows(self) -> list[int]:
-        """Row of each half's active fraction (its model's ``active_state``), length n_halves."""
-        return [off + h.params.state_index(h.params.active_state) for h, off in zip(self._halves, self.state_offsets())]
-
-    def fatigue_groups(self) -> tuple[FatigueGroup, ...]:
-        """The halves grouped by fatigue equations (the same model kind and :meth:`structure_key
-        <fatigue_pin.fatigue.interface.FatigueModel.structure_key>`; parameter values may differ),
-        groups in the order of their first half. A group's halves share one state step of one
-        half, mapped over them (:mod:`fatigue_pin.ocp.intervals`)."""
-        keys: dict[str, list[int]] = {}
-        for i, h in enumerate(self._halves):
-            keys.setdefault(h.params.structure_key(), []).append(i)
-        offsets, param_offsets = self.state_offsets(), self.param_offsets()
-        groups, seen = [], {}
-        for halves in keys.values():
-            model = self._halves[halves[0]].params
-            kind = "_".join(re.findall(r"[A-Za-z0-9]+", model.kind)) or "model"  # a name CasADi accepts
-            seen[kind] = seen.get(kind, 0) + 1
-            label = kind if seen[kind] == 1 else f"{kind}_{seen[kind]}"
-            ns, npar = model.n_states(), model.n_params()
-            groups.append(FatigueGroup(
-                label, model, tuple(halves),
-                tuple(offsets[i] + s for i in halves for s in range(ns)),
-                tuple(param_offsets[i] + k for i in halves for k in range(npar))))
-        return tuple(groups)
 
     def structure_key(self) -> str:
         """Text identifying what compiled code depends on: joints, limits, fatigue equations and,
@@ -379,30 +265,6 @@ class SignedTorqueActuators:
         """Index in the model's joints of each actuated joint, length na."""
         return [self._joint_names.index(j) for j in self._actuated]
 
-    def params_of(self, name: str) -> FatigueParams:
-        """Fatigue parameters of the half ``name`` (e.g. ``"elbow_minus"``)."""
-        for h in self._halves:
-            if h.name == name:
-                return h.params
-        raise ParameterError(f"unknown actuator half {name!r}; the halves are {list(self.half_names)}")
-
-    def param_vector(self) -> np.ndarray:
-        """Stacked fatigue parameters of each half (e.g. ``[LD, LR, F, R, S, r]`` for Xia's model),
-        shape (n_params,)."""
-        return np.concatenate([h.params.as_vector() for h in self._halves])
-
-    def initial_state(self) -> np.ndarray:
-        """The rested state of every half (Xia: ``(ma, mr, mf) = (0, 1, 0)``), shape (n_states,)."""
-        return np.concatenate([h.params.rest_state() for h in self._halves])
-
-    def check_stabiliser(self, dt: float, method: str = "rk4") -> None:
-        """Check every half's model for a stable explicit step ``dt`` (raises ParameterError)."""
-        for h in self._halves:
-            try:
-                h.params.check_step(dt, method)
-            except ParameterError as exc:
-                raise ParameterError(f"actuator half {h.name!r}: {exc}") from None
-
     # -- controls, halves and joint torques ------------------------------------------------------
 
     def control_rows(self) -> list[int]:
@@ -427,8 +289,9 @@ class SignedTorqueActuators:
             H[self._joint_names.index(h.joint), k] = 1.0
         return H
 
-    def joint_torque(self, u: Expr, m: Expr | None = None) -> Expr:
-        """Joint torques (N m or N), 0 on passive joints, from controls ``u``.
+    def joint_torque(self, u: Expr, m: Expr | None = None, y: Expr | None = None) -> Expr:
+        """Joint torques (N m or N), 0 on passive joints, from controls ``u`` (the rigid-body
+        state ``y`` is not needed: the torque of a half does not depend on it).
 
         CasADi ``u`` of shape (nu, K) gives (nv, K); a numpy ``u`` of shape (..., nu) (a row per
         interval) gives (..., nv). Under the ``active`` coupling the torque is the halves'
@@ -449,6 +312,13 @@ class SignedTorqueActuators:
         if a.shape[-1] != self.nu:
             raise DimensionError(f"controls u of shape {a.shape}: expected {self.nu} columns (tau_plus, tau_minus)")
         return a @ self.torque_matrix().T
+
+    def controls_for_torques(self, tau: np.ndarray, q: np.ndarray | None = None, qdot: np.ndarray | None = None) -> np.ndarray:
+        """Controls (N, nu) that give joint torques ``tau`` (N, nv) as nearly as the limits allow:
+        each actuated joint's torque clipped to its limits and given to the half of its sign
+        (passive joints have none); ``q``, ``qdot`` are not needed."""
+        tau = np.clip(np.asarray(tau, dtype=float)[:, self.actuated_index], self.tau_minus_limits, self.tau_plus_limits)
+        return np.hstack([np.maximum(tau, 0.0), np.minimum(tau, 0.0)])
 
     def _map_halves(self, tau_halves: Expr) -> Expr:
         """Joint torques from half torques: (n_halves, K) -> (nv, K), or numpy (..., n_halves) -> (..., nv)."""
@@ -491,60 +361,12 @@ class SignedTorqueActuators:
         ``u = (tau_plus; tau_minus)`` of shape (nu, K) (N m): ``tau_plus / tau_upper`` and
         ``tau_minus / tau_lower`` in half order; a row selection divided by the signed limits, so
         affine in ``u`` (the one place that divides a torque by its limit)."""
-        u = u if isinstance(u, (ca.SX, ca.MX, ca.DM)) else _column(u, self.nu, "controls u")
+        u = u if isinstance(u, (ca.SX, ca.MX, ca.DM)) else column(u, self.nu, "controls u")
         if u.size1() != self.nu:
             raise DimensionError(f"controls u of shape {u.shape}: expected {self.nu} rows (tau_plus, tau_minus)")
         return u[self.control_rows(), :] / ca.repmat(ca.DM(self.signed_limits), 1, u.size2())
 
-    #: the name the interval functions use (the same method)
-    control_target_loads = target_loads
 
-    def state(self, m: Expr, state: str) -> Expr:
-        """State ``state`` (e.g. ``"mf"``) of every half, shape (n_halves,), from ``m`` of shape
-        (n_states,). Every half's model must have that state."""
-        m = _column(m, self.n_states, "fatigue states m")
-        rows = self.state_rows(state)
-        missing = [h.name for h, r in zip(self._halves, rows) if r is None]
-        if missing:
-            raise ParameterError(f"fatigue state {state!r} is not a state of the models of halves {missing}")
-        return ca.vertcat(*[m[r] for r in rows])
-
-    def split_states(self, m: Expr) -> tuple[Expr, ...]:
-        """Every state kind of :attr:`fatigue_state_kinds` of all halves, each shape (n_halves,)."""
-        return tuple(self.state(m, s) for s in self.fatigue_state_kinds)
-
-    def fatigued(self, m: Expr) -> Expr:
-        """Fatigued fraction of every half (its model's ``fatigued_state``), shape (n_halves,)."""
-        m = _column(m, self.n_states, "fatigue states m")
-        return ca.vertcat(*[m[r] for r in self.fatigued_rows()])
-
-    def fatigue_rates(self, m: Expr, u: Expr, p: Expr | None = None) -> Expr:
-        """``dm/dt`` (1/s), shape (n_states,), same layout as ``m``.
-
-        Args:
-            m: fatigue states, shape (n_states,).
-            u: controls ``(tau_plus, tau_minus)`` (N m), shape (nu,).
-            p: optional parameter vector, shape (n_params,), e.g. a symbol; default
-                :meth:`param_vector`.
-        """
-        m = _column(m, self.n_states, "fatigue states m")
-        TL = self.target_loads(u)
-        p = ca.DM(self.param_vector()) if p is None else _column(p, self.n_params, "fatigue parameter vector p")
-        out = []
-        for i, (h, so, po) in enumerate(zip(self._halves, self.state_offsets(), self.param_offsets())):
-            ns, npar = h.params.n_states(), h.params.n_params()
-            out.append(h.params.rhs()(m[so : so + ns], TL[i], p[po : po + npar]))
-        return ca.vertcat(*out)
-
-    def coupling(self, m: Expr, u: Expr) -> Expr:
-        """Torque/fatigue coupling ``TL + fatigued fraction`` per half (dimensionless), shape
-        (n_halves,); under the ``tl+mf<=1`` coupling the OCPs bound it to [0, 1]."""
-        return self.target_loads(u) + self.fatigued(m)
-
-    @property
-    def coupling_rows(self) -> bool:
-        """Whether the OCPs hold ``0 <= TL + m_fatigued <= 1`` (the ``tl+mf<=1`` coupling)."""
-        return self._coupling == "tl+mf<=1"
 
     def available_torque(self, mf: Expr) -> Expr:
         """Signed torque each half can still produce, ``(1 - mf) * limit`` (N m), shape (n_halves,):
@@ -553,7 +375,7 @@ class SignedTorqueActuators:
         Args:
             mf: fatigued fraction of each half, shape (n_halves,) (see :meth:`split_states`).
         """
-        mf = _column(mf, self.n_halves, "mf")
+        mf = column(mf, self.n_halves, "mf")
         return (1 - mf) * ca.DM(self.signed_limits)
 
     def __repr__(self) -> str:

@@ -97,7 +97,7 @@ class IntervalVariables:
     def tau(self) -> ca.SX:
         """Joint torques (N m), (nv,), as the actuators deliver them
         (:meth:`~fatigue_pin.ocp.actuators.SignedTorqueActuators.joint_torque`: 0 on passive joints)."""
-        return self.actuators.joint_torque(self.u, self.x[self.layout.m])
+        return self.actuators.joint_torque(self.u, self.x[self.layout.m], self.x[: self.layout.nq + self.layout.nv])
 
     def tau_halves(self, joints: str | Sequence[str] | None = None) -> ca.SX:
         """Torques of the halves of ``joints`` (N m or N): ``(plus of each, minus of each)``, (2 len(joints),)."""

@@ -52,13 +52,12 @@ def rollout_fatigue(ocp: Ocp, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarra
 
 
 def _inverse_dynamics_guess(ocp: Ocp, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarray, qddot: np.ndarray) -> Guess:
-    """The torques of a motion (RNEA), clipped to the limits and split into the halves, and the
-    fatigue states integrated from them."""
+    """The torques of a motion (RNEA) as the actuators' controls (``controls_for_torques``: the
+    halves' torques clipped to their limits, or the muscles' activations), and the fatigue states
+    integrated from them."""
     N = ocp.n_intervals
     tau = np.array([np.asarray(ocp.model.rnea(q[k], qdot[k], qddot[k])).reshape(-1) for k in range(N)])
-    A = ocp.actuators
-    tau = np.clip(tau[:, A.actuated_index], A.tau_minus_limits, A.tau_plus_limits)  # passive joints: no actuator
-    u = np.hstack([np.maximum(tau, 0.0), np.minimum(tau, 0.0)])
+    u = ocp.actuators.controls_for_torques(tau, q[:N], qdot[:N])
     return rollout_fatigue(ocp, x_init, q, qdot, u), u
 
 

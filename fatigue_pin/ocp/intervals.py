@@ -132,7 +132,8 @@ class IntervalFunctions:
         #: through the interval, so the rigid body is integrated with the fatigue states:
         #: ``F_rb_active(y, m, u, p) -> y_next``, the y part of RK4 of (y, m) (its m part is
         #: :attr:`F_fatigue`'s, m not depending on y); None under the other couplings
-        self.F_rb_active = self._active_rigid_body(h, substeps) if actuators.coupling_kind == "active" else None
+        self.F_rb_active = (self._active_rigid_body(h, substeps)
+                            if actuators.coupling_kind == "active" or actuators.torque_needs_state else None)
         v = IntervalVariables(x, u, u_prev, layout, model, actuators)
         integrands = [term.expression(v) for term in problem.costs if not term.terminal]
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
@@ -225,7 +226,7 @@ class IntervalFunctions:
         u, p = ca.MX.sym("u", A.nu), ca.MX.sym("p_fatigue", A.n_params)
         z = ca.SX.sym("z", ny + A.n_states)
         us, ps = ca.SX.sym("u", A.nu), ca.SX.sym("p", A.n_params)
-        tau = A.joint_torque(us, z[ny:])
+        tau = A.joint_torque(us, z[ny:], z[:ny])  # muscles: on (q, qdot) too
         f = ca.Function("f_active", [z, us, ps], [ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps))])
         z_next = rk4(f, ca.vertcat(y, m), (u, p), h, substeps)
         return ca.Function("F_rb_active", [y, m, u, p], [z_next[:ny]], ["y", "m", "u", "p"], ["y_next"])

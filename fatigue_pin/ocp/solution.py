@@ -113,4 +113,5 @@ class OcpSolution:
         """Joint torques as the actuators deliver them (N m), (N, nv): the halves' sum, 0 on
         passive joints (under the ``active`` coupling, from the active fractions at the interval
         starts)."""
-        return np.asarray(self.layout.actuators.joint_torque(self.u, self.x[:-1, self.layout.m]))
+        L = self.layout
+        return np.asarray(L.actuators.joint_torque(self.u, self.x[:-1, L.m], self.x[:-1, : L.nq + L.nv]))

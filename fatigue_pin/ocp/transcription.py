@@ -180,7 +180,8 @@ class Ocp:
     def torque_is_variable(self) -> bool:
         """:attr:`Transcription.torque_variable`, but never under the ``active`` coupling (its
         torque follows the states within the interval)."""
-        return self.transcription.torque_variable and self.actuators.coupling_kind != "active"
+        return (self.transcription.torque_variable and self.actuators.coupling_kind != "active"
+                and not self.actuators.torque_needs_state)
 
     @property
     def map_mode(self) -> str:
@@ -278,7 +279,7 @@ class Ocp:
             Ts = opti.variable(layout.nv, N)
             T = ca.diag(ca.DM(self.t_scale)) @ Ts
         else:  # the torque the actuators deliver (under the `active` coupling: from the states)
-            T = self.actuators.joint_torque(U, X[layout.m, :N])
+            T = self.actuators.joint_torque(U, X[layout.m, :N], X[: layout.nq + layout.nv, :N])
         self.X, self.U, self.T = X, U, T
         params = ParameterLayout(opti)
         P_fatigue = params.add("fatigue", self.actuators.n_params)

@@ -1,0 +1,241 @@
+"""The actuation layer: controls -> joint torques, and the capacity states it carries.
+
+:class:`ActuationLayer` is what every kind of actuator shares: a sequence of *units* (the halves of
+the signed torque actuators, :class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators`; the
+muscles, :class:`~fatigue_pin.ocp.muscle_actuators.MuscleActuators`), each with its fatigue model
+(any :class:`~fatigue_pin.fatigue.interface.FatigueModel`) and target load. It owns where each
+unit's fatigue states sit (the states of each unit consecutively, units in order), their names,
+their parameters, their right-hand sides and the coupling rows ``TL + m_fatigued``. A kind adds
+its controls, their bounds and scales, its target loads and its joint torque.
+
+Drivers, costs, verify, plots and replay ask the layer (these methods), never a kind. (For the
+signed torque actuators, "unit" and "half" are the same: the names below keep ``half`` for them.)
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Union
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.ocp.halves import FatigueGroup
+
+__all__ = ["ActuationLayer", "column"]
+
+Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
+
+
+def column(x: Expr, n: int, what: str) -> Expr:
+    """Return ``x`` as a CasADi column of length ``n`` (numpy -> DM)."""
+    if isinstance(x, (ca.SX, ca.MX, ca.DM)):
+        if x.shape not in ((n, 1), (1, n)) and not (n == 1 and x.numel() == 1):
+            raise DimensionError(f"{what} of shape {x.shape}: expected {n} entries")
+        return x if x.shape[1] == 1 else x.T
+    a = np.asarray(x, dtype=float).reshape(-1)
+    if a.shape != (n,):
+        raise DimensionError(f"{what} of shape {np.shape(x)}: expected {n} entries")
+    return ca.DM(a)
+
+
+class ActuationLayer:
+    """The units of an actuation kind, each with its fatigue model (module docstring).
+
+    A kind sets ``_halves`` (its units: objects with ``name`` and ``params``, a FatigueModel),
+    ``_joint_names`` (every joint of the model) and ``_coupling`` (one of :data:`~fatigue_pin.ocp.actuation.COUPLINGS`), and
+    defines ``nu``, :meth:`target_loads`, :meth:`joint_torque`, :meth:`control_bounds`,
+    :meth:`control_scales` and :meth:`structure_key`.
+    """
+
+    _halves: tuple
+    _joint_names: tuple[str, ...]
+    _coupling: str
+
+    #: whether the joint torque depends on the rigid-body state (q, qdot) within an interval
+    torque_needs_state = False
+
+    def target_loads(self, u: Expr) -> Expr:
+        """Target loads (dimensionless) of every unit, (n_units, K), from controls (nu, K)."""
+        raise NotImplementedError
+
+    def control_target_loads(self, u: Expr) -> Expr:
+        """:meth:`target_loads` (the name the interval functions use)."""
+        return self.target_loads(u)
+
+    @property
+    def halves(self) -> tuple:
+        """The units: for the signed torque actuators the halves ``(j0_plus, j0_minus, j1_plus,
+        ...)`` (actuated joints only), for muscles the muscles in order."""
+        return self._halves
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Every joint of the model in model order (length nv), passive ones included."""
+        return self._joint_names
+
+    @property
+    def coupling_kind(self) -> str:
+        """How torque and fatigue are coupled, one of :data:`~fatigue_pin.ocp.actuation.COUPLINGS`."""
+        return self._coupling
+
+    @property
+    def nv(self) -> int:
+        """Number of joints (passive ones included)."""
+        return len(self._joint_names)
+
+    @property
+    def n_halves(self) -> int:
+        """Number of halves (``2 * na``)."""
+        return len(self._halves)
+
+    @property
+    def n_states(self) -> int:
+        """Number of fatigue states (the sum over halves of their model's states)."""
+        return sum(h.params.n_states() for h in self._halves)
+
+    @property
+    def n_params(self) -> int:
+        """Length of :meth:`param_vector` (the sum over halves of their model's parameters)."""
+        return sum(h.params.n_params() for h in self._halves)
+
+    @property
+    def half_names(self) -> tuple[str, ...]:
+        """``("j0_plus", "j0_minus", ...)``."""
+        return tuple(h.name for h in self._halves)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Fatigue state names ``("j0_plus_ma", "j0_plus_mr", "j0_plus_mf", "j0_minus_ma", ...)`` (dimensionless)."""
+        return tuple(f"{h.name}_{s}" for h in self._halves for s in h.params.state_names)
+
+    @property
+    def fatigue_state_kinds(self) -> tuple[str, ...]:
+        """Every state name declared by the halves' models, in first-seen order (e.g. ``ma, mr, mf``)."""
+        return tuple(dict.fromkeys(s for h in self._halves for s in h.params.state_names))
+
+    def state_offsets(self) -> list[int]:
+        """Offset of each half's states in the fatigue state vector, length n_halves."""
+        offsets, k = [], 0
+        for h in self._halves:
+            offsets.append(k)
+            k += h.params.n_states()
+        return offsets
+
+    def param_offsets(self) -> list[int]:
+        """Offset of each half's parameters in :meth:`param_vector`, length n_halves."""
+        offsets, k = [], 0
+        for h in self._halves:
+            offsets.append(k)
+            k += h.params.n_params()
+        return offsets
+
+    def state_rows(self, state: str) -> list[int | None]:
+        """Row of state ``state`` of each half in the fatigue state vector (``None`` for a half whose
+        model has no such state), length n_halves."""
+        return [off + h.params.state_names.index(state) if state in h.params.state_names else None
+                for h, off in zip(self._halves, self.state_offsets())]
+
+    def fatigued_rows(self) -> list[int]:
+        """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
+        return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
+
+    def active_rows(self) -> list[int]:
+        """Row of each half's active fraction (its model's ``active_state``), length n_halves."""
+        return [off + h.params.state_index(h.params.active_state) for h, off in zip(self._halves, self.state_offsets())]
+
+    def fatigue_groups(self) -> tuple[FatigueGroup, ...]:
+        """The halves grouped by fatigue equations (the same model kind and :meth:`structure_key
+        <fatigue_pin.fatigue.interface.FatigueModel.structure_key>`; parameter values may differ),
+        groups in the order of their first half. A group's halves share one state step of one
+        half, mapped over them (:mod:`fatigue_pin.ocp.intervals`)."""
+        keys: dict[str, list[int]] = {}
+        for i, h in enumerate(self._halves):
+            keys.setdefault(h.params.structure_key(), []).append(i)
+        offsets, param_offsets = self.state_offsets(), self.param_offsets()
+        groups, seen = [], {}
+        for halves in keys.values():
+            model = self._halves[halves[0]].params
+            kind = "_".join(re.findall(r"[A-Za-z0-9]+", model.kind)) or "model"  # a name CasADi accepts
+            seen[kind] = seen.get(kind, 0) + 1
+            label = kind if seen[kind] == 1 else f"{kind}_{seen[kind]}"
+            ns, npar = model.n_states(), model.n_params()
+            groups.append(FatigueGroup(
+                label, model, tuple(halves),
+                tuple(offsets[i] + s for i in halves for s in range(ns)),
+                tuple(param_offsets[i] + k for i in halves for k in range(npar))))
+        return tuple(groups)
+
+    def params_of(self, name: str) -> FatigueModel:
+        """Fatigue parameters of the half ``name`` (e.g. ``"elbow_minus"``)."""
+        for h in self._halves:
+            if h.name == name:
+                return h.params
+        raise ParameterError(f"unknown actuator half {name!r}; the halves are {list(self.half_names)}")
+
+    def param_vector(self) -> np.ndarray:
+        """Stacked fatigue parameters of each half (e.g. ``[LD, LR, F, R, S, r]`` for Xia's model),
+        shape (n_params,)."""
+        return np.concatenate([h.params.as_vector() for h in self._halves])
+
+    def initial_state(self) -> np.ndarray:
+        """The rested state of every half (Xia: ``(ma, mr, mf) = (0, 1, 0)``), shape (n_states,)."""
+        return np.concatenate([h.params.rest_state() for h in self._halves])
+
+    def check_stabiliser(self, dt: float, method: str = "rk4") -> None:
+        """Check every half's model for a stable explicit step ``dt`` (raises ParameterError)."""
+        for h in self._halves:
+            try:
+                h.params.check_step(dt, method)
+            except ParameterError as exc:
+                raise ParameterError(f"actuator half {h.name!r}: {exc}") from None
+
+    def state(self, m: Expr, state: str) -> Expr:
+        """State ``state`` (e.g. ``"mf"``) of every half, shape (n_halves,), from ``m`` of shape
+        (n_states,). Every half's model must have that state."""
+        m = column(m, self.n_states, "fatigue states m")
+        rows = self.state_rows(state)
+        missing = [h.name for h, r in zip(self._halves, rows) if r is None]
+        if missing:
+            raise ParameterError(f"fatigue state {state!r} is not a state of the models of halves {missing}")
+        return ca.vertcat(*[m[r] for r in rows])
+
+    def split_states(self, m: Expr) -> tuple[Expr, ...]:
+        """Every state kind of :attr:`fatigue_state_kinds` of all halves, each shape (n_halves,)."""
+        return tuple(self.state(m, s) for s in self.fatigue_state_kinds)
+
+    def fatigued(self, m: Expr) -> Expr:
+        """Fatigued fraction of every half (its model's ``fatigued_state``), shape (n_halves,)."""
+        m = column(m, self.n_states, "fatigue states m")
+        return ca.vertcat(*[m[r] for r in self.fatigued_rows()])
+
+    def fatigue_rates(self, m: Expr, u: Expr, p: Expr | None = None) -> Expr:
+        """``dm/dt`` (1/s), shape (n_states,), same layout as ``m``.
+
+        Args:
+            m: fatigue states, shape (n_states,).
+            u: controls ``(tau_plus, tau_minus)`` (N m), shape (nu,).
+            p: optional parameter vector, shape (n_params,), e.g. a symbol; default
+                :meth:`param_vector`.
+        """
+        m = column(m, self.n_states, "fatigue states m")
+        TL = self.target_loads(u)
+        p = ca.DM(self.param_vector()) if p is None else column(p, self.n_params, "fatigue parameter vector p")
+        out = []
+        for i, (h, so, po) in enumerate(zip(self._halves, self.state_offsets(), self.param_offsets())):
+            ns, npar = h.params.n_states(), h.params.n_params()
+            out.append(h.params.rhs()(m[so : so + ns], TL[i], p[po : po + npar]))
+        return ca.vertcat(*out)
+
+    def coupling(self, m: Expr, u: Expr) -> Expr:
+        """Torque/fatigue coupling ``TL + fatigued fraction`` per half (dimensionless), shape
+        (n_halves,); under the ``tl+mf<=1`` coupling the OCPs bound it to [0, 1]."""
+        return self.target_loads(u) + self.fatigued(m)
+
+    @property
+    def coupling_rows(self) -> bool:
+        """Whether the OCPs hold ``0 <= TL + m_fatigued <= 1`` (the ``tl+mf<=1`` coupling)."""
+        return self._coupling == "tl+mf<=1"
+

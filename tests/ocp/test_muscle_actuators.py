@@ -1,0 +1,75 @@
+"""Muscles as an actuation kind of the optimal control problems: the same optimum as torque
+halves when the muscles are idealised with constant moment arms, and the muscle torque of arm26."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fatigue_pin.fatigue.models import XiaFatigue
+from fatigue_pin.muscles.geometry import FixedMomentArms
+from fatigue_pin.muscles.muscle import Muscle, PathPoint
+from fatigue_pin.muscles.muscle_set import MuscleSet
+from fatigue_pin.ocp.muscle_actuators import MuscleActuators
+from fatigue_pin.ocp.problem import Problem
+from fatigue_pin.ocp.solver import SolverOptions
+from fatigue_pin.ocp.transcription import Ocp
+
+ARM, FMAX = 0.02, 2500.0  # 50 N m at full activation: the bundled arm26's torque limits
+POINTS = (PathPoint("humerus", (0, 0, 0)), PathPoint("forearm", (0, 0, 0)))
+
+
+def idealised_pairs(joints: tuple[str, ...]) -> tuple[MuscleSet, FixedMomentArms]:
+    """A flexor and an extensor per joint, F = a F_max, moment arms +-ARM: r F_max = 50 N m."""
+    muscles, r = [], []
+    for j, name in enumerate(joints):
+        for sign, side in ((1, "flexor"), (-1, "extensor")):
+            muscles.append(Muscle(f"{name}_{side}", POINTS, FMAX, 0.1, 0.2, kind="idealized"))
+            row = np.zeros(len(joints))
+            row[j] = sign * ARM
+            r.append(row)
+    return MuscleSet(tuple(muscles)), FixedMomentArms(np.array(r), np.full(len(muscles), 0.3))
+
+
+def test_idealised_muscles_with_constant_arms_reach_the_torque_halves_optimum(small_problem):
+    base = small_problem
+    muscles, geometry = idealised_pairs(base.model.joint_names)
+    half = base.actuators.halves[0].params
+    assert all(h.params == half for h in base.actuators.halves)
+    actuators = MuscleActuators(base.model.joint_names, muscles, geometry, half)
+    # the halves' torque and torque-rate costs are in (N m)^2, the muscles' in activations^2: the same terms times 50^2
+    costs = tuple(dataclasses.replace(t, weight=t.weight * (50.0**2 if t.kind in ("torque", "torque_rate") else 1.0)) for t in base.costs)
+    muscle_problem = Problem(base.model, actuators, base.task, costs, base.x_init)
+    solver = SolverOptions(compile=False)
+    torque = Ocp(base, 1, base_transcription(), solver).solve()
+    muscle = Ocp(muscle_problem, 1, base_transcription(), solver).solve()
+    assert torque.success and muscle.success
+    assert muscle.objective == pytest.approx(torque.objective, rel=1e-6)
+    assert np.allclose(muscle.x, torque.x, atol=1e-5)
+    # the controls: activations times 50 N m are the halves' torques (flexors plus, extensors minus)
+    a = muscle.u
+    tau_plus, tau_minus = torque.u[:, :2], torque.u[:, 2:]
+    assert np.allclose(50.0 * a[:, 0::2], tau_plus, atol=1e-3) and np.allclose(-50.0 * a[:, 1::2], tau_minus, atol=1e-3)
+
+
+def base_transcription():
+    from fatigue_pin.ocp.transcription import Transcription
+
+    return Transcription(substeps=2)
+
+
+def test_arm26_muscle_torque_is_moment_arms_times_forces(arm26):
+    from fatigue_pin.muscles.files import load_muscles
+    from fatigue_pin.muscles.geometry import MuscleGeometry
+
+    muscles = load_muscles("arm26")
+    geometry = MuscleGeometry(arm26.pin_model, muscles)
+    A = MuscleActuators(arm26.joint_names, muscles, geometry, XiaFatigue(F=0.01, R=0.002, LD=10.0, LR=10.0))
+    q, v, a = np.array([0.3, 1.4]), np.array([0.5, -1.0]), np.linspace(0.1, 0.6, 6)
+    L, Ld = np.array(geometry.lengths(q)).ravel(), np.array(geometry.speeds(q, v)).ravel()
+    F = np.array([m.force(a[i], L[i], Ld[i]) for i, m in enumerate(muscles.muscles)])
+    tau = A.joint_torque(a, None, np.r_[q, v])
+    assert np.allclose(tau, np.array(geometry.moment_arms(q)).T @ F, atol=1e-12)
+    assert A.nu == 6 and A.n_states == 18 and A.state_names[:3] == ("TRIlong_ma", "TRIlong_mr", "TRIlong_mf")
