@@ -13,6 +13,12 @@ With nm muscles on a model of nv joints (docs/muscles.md):
 * the joint torque is ``r(q)^T F`` (nv,), so it depends on the rigid-body state: the interval
   functions integrate the rigid body with it (:attr:`torque_needs_state`);
 * fatigue states: each muscle's model's states, muscle after muscle (:class:`ActuationLayer`).
+
+Residual torques (optional): signed torque actuators on the joints beside the muscles
+(:class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators`, bounded by their limits, each half with
+its fatigue model: one that does not tire, e.g. Xia's with F = 0, makes them non-fatigable). Their
+controls follow the activations, ``u = (a, tau_plus, tau_minus)``, their halves follow the muscles
+as units (states, target loads ``tau / limit``), and their torque adds to the muscles'.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from fatigue_pin.muscles.muscle import Muscle
 from fatigue_pin.muscles.muscle_set import MuscleSet
 from fatigue_pin.ocp.actuation import COUPLINGS
 from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr
+from fatigue_pin.ocp.actuators import SignedTorqueActuators
 
 __all__ = ["MuscleUnit", "MuscleActuators"]
 
@@ -58,18 +65,26 @@ class MuscleActuators(ActuationLayer):
             (:class:`~fatigue_pin.muscles.geometry.MuscleGeometry`).
         params: one fatigue model for every muscle, or a dict muscle name or group -> model
             (a muscle's own name wins over its group) that covers every muscle.
-        coupling: one of :data:`~fatigue_pin.ocp.actuation.COUPLINGS`.
+        coupling: one of :data:`~fatigue_pin.ocp.actuation.COUPLINGS`, for the muscles and the
+            residual torques.
+        residuals: residual torque actuators on the same joints, or None (module docstring).
     """
 
     torque_needs_state = True
 
     def __init__(self, joint_names: tuple[str, ...], muscles: MuscleSet, geometry: Any, params: MuscleParams,
-                 coupling: str = "tl+mf<=1") -> None:
+                 coupling: str = "tl+mf<=1", residuals: SignedTorqueActuators | None = None) -> None:
         if coupling not in COUPLINGS:
             raise ParameterError(f"coupling = {shown(coupling)}: expected one of {list(COUPLINGS)}")
         self._joint_names = tuple(joint_names)
         self._coupling = coupling
-        self._halves = tuple(MuscleUnit(m.name, self._params_of(m, params), m) for m in muscles.muscles)
+        if residuals is not None and (residuals.coupling_kind != coupling or residuals.joint_names != self._joint_names):
+            raise ParameterError(f"residual torques with coupling {residuals.coupling_kind!r} on joints {list(residuals.joint_names)}: "
+                                 f"expected the muscles' coupling {coupling!r} on joints {list(self._joint_names)}")
+        self.residuals = residuals
+        units = tuple(MuscleUnit(m.name, self._params_of(m, params), m) for m in muscles.muscles)
+        self.n_muscles = len(units)
+        self._halves = units + (residuals.halves if residuals is not None else ())
         if coupling == "active":
             lacking = [u.name for u in self._halves if u.params.active_state not in u.params.state_names]
             if lacking:
@@ -78,7 +93,7 @@ class MuscleActuators(ActuationLayer):
         self.geometry = geometry
         nq = nv = len(self._joint_names)
         q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
-        a = ca.SX.sym("a", self.nu)
+        a = ca.SX.sym("a", self.n_muscles)
         L, Ldot = geometry.lengths(q), geometry.speeds(q, v)
         F = ca.vertcat(*[m.force(a[i], L[i], Ldot[i]) for i, m in enumerate(muscles.muscles)])
         #: ``muscle_forces(q, v, a) -> F (nm,)`` (N): tendon forces at effective activations a
@@ -101,42 +116,68 @@ class MuscleActuators(ActuationLayer):
 
     @property
     def nu(self) -> int:
-        """Number of controls: one activation per muscle."""
-        return len(self._halves)
+        """Number of controls: one activation per muscle, then the residual halves' torques."""
+        return self.n_muscles + (self.residuals.nu if self.residuals is not None else 0)
 
     @property
     def n_actuated(self) -> int:
-        """Number of muscles (the units that take a control)."""
+        """Number of units that take a control (muscles and residual halves)."""
         return len(self._halves)
 
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Activations in [0, 1], each shape (nu,)."""
-        return np.zeros(self.nu), np.ones(self.nu)
+        """Activations in [0, 1], then the residual halves' torque bounds (N m); each (nu,)."""
+        lo, hi = np.zeros(self.n_muscles), np.ones(self.n_muscles)
+        if self.residuals is None:
+            return lo, hi
+        rlo, rhi = self.residuals.control_bounds()
+        return np.concatenate([lo, rlo]), np.concatenate([hi, rhi])
 
     def control_scales(self, magnitude: np.ndarray) -> np.ndarray:
-        """Scales of the controls, (nu,): 1 (activations are of order 1)."""
-        return np.ones(self.nu)
+        """Scales of the controls, (nu,): 1 for the activations (of order 1), the residual
+        halves' as :meth:`SignedTorqueActuators.control_scales`."""
+        ones = np.ones(self.n_muscles)
+        return ones if self.residuals is None else np.concatenate([ones, self.residuals.control_scales(magnitude)])
 
     def structure_key(self) -> str:
         """What compiled code depends on: every muscle's parameters and path, its fatigue equations,
         the geometry's functions and the coupling."""
-        parts = [f"{u.muscle!r}:{u.params.structure_key()}" for u in self._halves]
-        return "muscles;" + ";".join(parts) + f";wraps={self.muscles.wraps!r};geometry={self.geometry.lengths.serialize()};coupling={self._coupling}"
+        parts = [f"{u.muscle!r}:{u.params.structure_key()}" for u in self._halves[: self.n_muscles]]
+        residual = f";residuals={self.residuals.structure_key()}" if self.residuals is not None else ""
+        return ("muscles;" + ";".join(parts) + f";wraps={self.muscles.wraps!r};geometry={self.geometry.lengths.serialize()}"
+                f";coupling={self._coupling}{residual}")
 
     # -- expressions ---------------------------------------------------------------------------------
 
     def target_loads(self, u: Expr) -> Expr:
-        """Target loads of the muscles, (nm, K): their activations."""
-        return u if isinstance(u, (ca.SX, ca.MX, ca.DM)) else ca.DM(np.asarray(u, dtype=float).reshape(-1, self.nu).T)
+        """Target loads of the units, (n_units, K): the muscles' activations, then the residual
+        halves' ``tau / limit``."""
+        u = u if isinstance(u, (ca.SX, ca.MX, ca.DM)) else ca.DM(np.asarray(u, dtype=float).reshape(-1, self.nu).T)
+        if self.residuals is None:
+            return u
+        return ca.vertcat(u[: self.n_muscles, :], self.residuals.target_loads(u[self.n_muscles :, :]))
 
     def effective_activation(self, u: Expr, m: Expr | None) -> Expr:
-        """The activation the force uses (module docstring): ``u``, or the active fractions under
-        the ``active`` coupling (rows of ``m``)."""
+        """The activation the force uses (module docstring): the activations in ``u``, or the
+        muscles' active fractions under the ``active`` coupling (rows of ``m``)."""
+        nm = self.n_muscles
         if self._coupling != "active":
-            return u
+            return u[:nm, :] if isinstance(u, (ca.SX, ca.MX, ca.DM)) else np.asarray(u)[..., :nm]
         if m is None:
             raise ParameterError("coupling 'active': the muscle force follows m_active; expected the fatigue states m")
-        return m[self.active_rows(), :] if isinstance(m, (ca.SX, ca.MX, ca.DM)) else np.asarray(m)[..., self.active_rows()]
+        rows = self.active_rows()[:nm]
+        return m[rows, :] if isinstance(m, (ca.SX, ca.MX, ca.DM)) else np.asarray(m)[..., rows]
+
+    def _residual_torque(self, u: Expr, m: Expr | None, y: Expr) -> Expr | None:
+        """The residual torques' joint torque (nv, K) or (..., nv), or None without them."""
+        if self.residuals is None:
+            return None
+        symbolic = isinstance(u, (ca.SX, ca.MX, ca.DM))
+        ur = u[self.n_muscles :, :] if symbolic else np.asarray(u)[..., self.n_muscles :]
+        mr = None
+        if m is not None:
+            k = self.state_offsets()[self.n_muscles]
+            mr = m[k:, :] if symbolic else np.asarray(m)[..., k:]
+        return self.residuals.joint_torque(ur, mr, y)
 
     def joint_torque(self, u: Expr, m: Expr | None = None, y: Expr | None = None) -> Expr:
         """Joint torques (N m), ``r(q)^T F``: CasADi ``u`` (nu, K), ``y = (q, qdot)`` (2 nv, K) ->
@@ -145,24 +186,32 @@ class MuscleActuators(ActuationLayer):
             raise ParameterError("muscle actuators: the joint torque depends on q and qdot; expected the rigid-body state y")
         a = self.effective_activation(u, m)
         nv = self.nv
+        residual = self._residual_torque(u, m, y)
         if isinstance(u, (ca.SX, ca.MX, ca.DM)):
             K = u.size2()
-            return (self.torque if K == 1 else self.torque.map(K))(y[:nv, :], y[nv:, :], a)
+            tau = (self.torque if K == 1 else self.torque.map(K))(y[:nv, :], y[nv:, :], a)
+            return tau if residual is None else tau + residual
         lead = np.shape(u)[:-1]
-        a = np.asarray(a, dtype=float).reshape(-1, self.nu)
-        y = np.asarray(y, dtype=float).reshape(-1, 2 * nv)
-        out = np.array(self.torque.map(y.shape[0])(y[:, :nv].T, y[:, nv:].T, a.T)).T
-        return out.reshape(lead + (nv,))
+        a = np.asarray(a, dtype=float).reshape(-1, self.n_muscles)
+        yy = np.asarray(y, dtype=float).reshape(-1, 2 * nv)
+        tau = np.array(self.torque.map(yy.shape[0])(yy[:, :nv].T, yy[:, nv:].T, a.T)).T.reshape(lead + (nv,))
+        return tau if residual is None else tau + residual
 
     def controls_for_torques(self, tau: np.ndarray, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """Activations (N, nu) that give joint torques ``tau`` (N, nv) at (q, qdot) as nearly as
-        the bounds allow: bounded least squares of ``r^T F(a)`` (affine in a), per node (scipy)."""
+        """Controls (N, nu) that give joint torques ``tau`` (N, nv) at (q, qdot) as nearly as the
+        bounds allow: the activations by bounded least squares of ``r^T F(a)`` (affine in a), per
+        node (scipy), then the residual torques take what the muscles leave."""
         from scipy.optimize import lsq_linear
 
-        out = np.zeros((tau.shape[0], self.nu))
-        zero, one = np.zeros(self.nu), np.ones(self.nu)
+        nm = self.n_muscles
+        a = np.zeros((tau.shape[0], nm))
+        left = np.array(tau, dtype=float)
+        zero, one = np.zeros(nm), np.ones(nm)
         for k in range(tau.shape[0]):
             base = np.asarray(self.torque(q[k], qdot[k], zero)).reshape(-1)
-            B = np.array([np.asarray(self.torque(q[k], qdot[k], e)).reshape(-1) - base for e in np.eye(self.nu)]).T
-            out[k] = lsq_linear(B, tau[k] - base, bounds=(zero, one)).x
-        return out
+            B = np.array([np.asarray(self.torque(q[k], qdot[k], e)).reshape(-1) - base for e in np.eye(nm)]).T
+            a[k] = lsq_linear(B, tau[k] - base, bounds=(zero, one)).x
+            left[k] -= base + B @ a[k]
+        if self.residuals is None:
+            return a
+        return np.hstack([a, self.residuals.controls_for_torques(left)])

@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.muscles.geometry import FixedMomentArms
 from fatigue_pin.muscles.muscle import Muscle, PathPoint
@@ -73,3 +74,27 @@ def test_arm26_muscle_torque_is_moment_arms_times_forces(arm26):
     tau = A.joint_torque(a, None, np.r_[q, v])
     assert np.allclose(tau, np.array(geometry.moment_arms(q)).T @ F, atol=1e-12)
     assert A.nu == 6 and A.n_states == 18 and A.state_names[:3] == ("TRIlong_ma", "TRIlong_mr", "TRIlong_mf")
+
+
+def test_residual_torques_add_to_the_muscles(arm26, arm26_muscles, arm26_geometry):
+    from fatigue_pin.ocp.actuators import SignedTorqueActuators
+
+    xia = XiaFatigue(F=0.01, R=0.002, LD=10.0, LR=10.0)
+    residuals = SignedTorqueActuators.from_model(arm26, xia)
+    A = MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia, residuals=residuals)
+    alone = MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia)
+    y = np.array([0.3, 1.4, 0.5, -1.0])
+    a, tau_r = np.full(6, 0.3), np.array([4.0, 0.0, 0.0, -7.0])  # (shoulder+, elbow+, shoulder-, elbow-)
+    u = np.r_[a, tau_r]
+    assert np.allclose(A.joint_torque(u, None, y), alone.joint_torque(a, None, y) + np.array([4.0, -7.0]), atol=1e-12)
+    assert A.nu == 10 and A.n_states == 30 and A.half_names[6:] == ("shoulder_plus", "shoulder_minus", "elbow_plus", "elbow_minus")
+    lo, hi = A.control_bounds()
+    assert np.allclose(lo, [0] * 6 + [0, 0, -50, -50]) and np.allclose(hi, [1] * 6 + [50, 50, 0, 0])
+    TL = np.array(A.target_loads(u)).ravel()
+    assert np.allclose(TL, np.r_[a, 4.0 / 50, 0.0, 0.0, 7.0 / 50])  # units: muscles, then the halves in half order
+    # the guess: activations first, the residuals take what the muscles cannot give
+    tau = np.array([[30.0, 60.0]])
+    guess = A.controls_for_torques(tau, y[None, :2], y[None, 2:])
+    assert np.allclose(A.joint_torque(guess[0], None, y), tau[0], atol=1e-6)
+    with pytest.raises(ParameterError, match=r"residual torques with coupling .tl\+mf<=1.*expected the muscles. coupling .active."):
+        MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia, coupling="active", residuals=residuals)
