@@ -56,6 +56,8 @@ class ActuationLayer:
 
     #: whether the joint torque depends on the rigid-body state (q, qdot) within an interval
     torque_needs_state = False
+    #: whether the units are a plus and a minus half per joint (per-joint cost terms select them)
+    units_per_joint = True
 
     def target_loads(self, u: Expr) -> Expr:
         """Target loads (dimensionless) of every unit, (n_units, K), from controls (nu, K)."""

@@ -71,6 +71,7 @@ class MuscleActuators(ActuationLayer):
     """
 
     torque_needs_state = True
+    units_per_joint = False
 
     def __init__(self, joint_names: tuple[str, ...], muscles: MuscleSet, geometry: Any, params: MuscleParams,
                  coupling: str = "tl+mf<=1", residuals: SignedTorqueActuators | None = None) -> None:

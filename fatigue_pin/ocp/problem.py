@@ -205,6 +205,9 @@ class Problem:
 
         states, joints = self.layout.state_names, self.model.joint_names
         for t in self.costs:
+            if t.options.get("joints") and t.kind in ("torque", "torque_rate", "fatigue") and not self.actuators.units_per_joint:
+                raise ParameterError(f"cost term {t.name!r}: a {t.kind} term per joint selects torque halves; these actuators "
+                                     "are muscles: expected the term over every unit (no joints)")
             for j in t.options.get("joints", []):
                 if j not in joints:
                     raise ParameterError(f"cost term {t.name!r}: joint {j!r} is not in model {self.model.name!r}; its joints are {list(joints)}")

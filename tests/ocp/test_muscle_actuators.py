@@ -98,3 +98,12 @@ def test_residual_torques_add_to_the_muscles(arm26, arm26_muscles, arm26_geometr
     assert np.allclose(A.joint_torque(guess[0], None, y), tau[0], atol=1e-6)
     with pytest.raises(ParameterError, match=r"residual torques with coupling .tl\+mf<=1.*expected the muscles. coupling .active."):
         MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia, coupling="active", residuals=residuals)
+
+
+def test_a_per_joint_torque_term_on_muscles_is_refused(small_problem):
+    from fatigue_pin.ocp.costs import torque
+
+    muscles, geometry = idealised_pairs(small_problem.model.joint_names)
+    A = MuscleActuators(small_problem.model.joint_names, muscles, geometry, small_problem.actuators.halves[0].params)
+    with pytest.raises(ParameterError, match=r"^cost term 'torque': a torque term per joint selects torque halves"):
+        Problem(small_problem.model, A, small_problem.task, (torque(1.0, joints=["elbow"]),))
