@@ -17,6 +17,7 @@ from fatigue_pin.core.errors import ModelError, ParameterError
 from fatigue_pin.muscles.muscle import Muscle, PathPoint
 from fatigue_pin.muscles.muscle_set import MuscleSet
 from fatigue_pin.muscles.wraps import CylinderWrap
+from fatigue_pin.robot.model import bundled_file
 
 __all__ = ["bundled_muscles", "load_muscles", "read_muscles"]
 
@@ -24,13 +25,11 @@ _SUFFIX = ".muscles.toml"
 
 
 def bundled_muscles(name: str) -> Path:
-    """Path of a muscle file shipped with fatigue_pin (``arm26``)."""
-    here = Path(__file__).resolve().parents[1]  # the package folder
-    for folder in (here / "urdf", here.parent / "urdf"):  # installed wheel, then source tree
-        path = folder / f"{name}{_SUFFIX}"
-        if path.is_file():
-            return path
-    raise ModelError(f"bundled muscle file {name!r} not found next to the package ({here}); the bundled ones are: arm26")
+    """Path of a muscle file shipped with fatigue_pin (``arm26``), beside the bundled URDFs."""
+    path = bundled_file(f"{name}{_SUFFIX}")
+    if path is None:
+        raise ModelError(f"bundled muscle file {name!r} not found; the bundled ones are: arm26")
+    return path
 
 
 def _fields(cls: type, table: dict, where: str) -> dict:

@@ -90,7 +90,7 @@ class ActuationLayer:
 
     @property
     def n_halves(self) -> int:
-        """Number of halves (``2 * na``)."""
+        """Number of units (signed torque halves: ``2 * na``; muscles: nm, then residual halves)."""
         return len(self._halves)
 
     @property
@@ -120,19 +120,11 @@ class ActuationLayer:
 
     def state_offsets(self) -> list[int]:
         """Offset of each half's states in the fatigue state vector, length n_halves."""
-        offsets, k = [], 0
-        for h in self._halves:
-            offsets.append(k)
-            k += h.params.n_states()
-        return offsets
+        return np.cumsum([0] + [h.params.n_states() for h in self._halves[:-1]]).tolist()
 
     def param_offsets(self) -> list[int]:
         """Offset of each half's parameters in :meth:`param_vector`, length n_halves."""
-        offsets, k = [], 0
-        for h in self._halves:
-            offsets.append(k)
-            k += h.params.n_params()
-        return offsets
+        return np.cumsum([0] + [h.params.n_params() for h in self._halves[:-1]]).tolist()
 
     def state_rows(self, state: str) -> list[int | None]:
         """Row of state ``state`` of each half in the fatigue state vector (``None`` for a half whose

@@ -52,14 +52,23 @@ def joint_kinds_of_urdf(urdf: str) -> dict[str, str]:
     return {model.names[i]: joint_kind(model.joints[i]) for i in range(1, model.njoints)}
 
 
+def bundled_file(filename: str) -> Path | None:
+    """Path of a model file shipped with fatigue_pin (a URDF, a muscle file), or None: the
+    package's ``urdf`` folder (an installed wheel), then the source tree's."""
+    here = Path(__file__).resolve().parents[1]  # the package folder
+    for folder in (here / "urdf", here.parent / "urdf"):
+        if (folder / filename).is_file():
+            return folder / filename
+    return None
+
+
 def bundled_urdf(name: str = "arm26") -> Path:
     """Path of a URDF shipped with fatigue_pin (``arm26``)."""
-    here = Path(__file__).resolve().parents[1]  # the package folder
-    for folder in (here / "urdf", here.parent / "urdf"):  # installed wheel, then source tree
-        path = folder / f"{name}.urdf"
-        if path.is_file():
-            return path
-    raise ModelError(f"bundled URDF {name!r} not found next to the package ({here}); reinstall fatigue_pin")
+    path = bundled_file(f"{name}.urdf")
+    if path is None:
+        raise ModelError(f"bundled URDF {name!r} not found next to the package ({Path(__file__).resolve().parents[1]}); "
+                         "reinstall fatigue_pin")
+    return path
 
 
 #: URDFs of example-robot-data known by short name (paths below its ``robots`` folder).
