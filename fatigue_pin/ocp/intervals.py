@@ -267,7 +267,9 @@ class IntervalFunctions:
             rb = f.name() == "F_rb"
             diff = tuple(int(i) for i in diffs[f.name()])
             analytical = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and diff == (0, 1) else None
-            self.blocks[f.name()] = block_functions(f, diff, hessian=not (rb and hessian == "gauss-newton"),
+            # gauss-newton drops the rigid body's second derivatives, with a state-dependent torque too
+            exact = not (f.name() in ("F_rb", "F_rb_active") and hessian == "gauss-newton")
+            self.blocks[f.name()] = block_functions(f, diff, hessian=exact,
                                                     hessian_of=approximations.get(hessian) if rb else None, jacobian=analytical)
         self.blocks_hessian = hessian
 

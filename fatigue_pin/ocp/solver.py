@@ -149,7 +149,8 @@ class SolverOptions:
             mode; ``True``: also without compiling (blocks evaluated by CasADi); ``False``: never.
             Not used in ``nlp`` mode.
         hessian: the Lagrangian's Hessian IPOPT gets: ``exact``, or ``gauss-newton``: without the
-            second derivatives of the rigid-body dynamics (the RK4 of ABA: Gauss-Newton for the
+            second derivatives of the rigid-body dynamics (the RK4 of ABA, with a torque that
+            depends on the state, such as the muscles', inside it: Gauss-Newton for the
             rigid-body gaps), the exact Hessian of the costs, the fatigue dynamics, the coupling
             and the task's constraints kept. The same KKT point; only IPOPT's path differs, and
             each iteration and the compile skip the largest derivative (needs the derivative

@@ -107,3 +107,20 @@ def test_a_per_joint_torque_term_on_muscles_is_refused(small_problem):
     A = MuscleActuators(small_problem.model.joint_names, muscles, geometry, small_problem.actuators.halves[0].params)
     with pytest.raises(ParameterError, match=r"^cost term 'torque': a torque term per joint selects torque halves"):
         Problem(small_problem.model, A, small_problem.task, (torque(1.0, joints=["elbow"]),))
+
+
+def test_gauss_newton_reaches_the_exact_optimum_with_a_state_dependent_torque(small_problem):
+    # the rigid body's second derivatives dropped from the Hessian block of F_rb_active (the muscles'
+    # torque inside the RK4 stages): the same KKT point, another path (blocks evaluated by CasADi)
+    muscles, geometry = idealised_pairs(small_problem.model.joint_names)
+    A = MuscleActuators(small_problem.model.joint_names, muscles, geometry, small_problem.actuators.halves[0].params)
+    costs = tuple(dataclasses.replace(t, weight=t.weight * (50.0**2 if t.kind in ("torque", "torque_rate") else 1.0))
+                  for t in small_problem.costs)  # as the halves' (first test)
+    problem = Problem(small_problem.model, A, small_problem.task, costs, small_problem.x_init)
+    exact = Ocp(problem, 1, base_transcription(), SolverOptions(compile=False, derivative_blocks=True)).solve()
+    gn_ocp = Ocp(problem, 1, base_transcription(), SolverOptions(compile=False, derivative_blocks=True, hessian="gauss-newton"))
+    assert gn_ocp.functions.blocks["F_rb_active"].hess is None
+    gn = gn_ocp.solve()
+    assert exact.success and gn.success
+    assert gn.objective == pytest.approx(exact.objective, rel=1e-6)
+    assert np.allclose(gn.x, exact.x, atol=1e-4)
