@@ -42,6 +42,22 @@ def locked(lock_file: Path) -> Iterator[None]:
         os.close(fd)  # releases the lock
 
 
+def held(lock_file: Path) -> bool:
+    """Whether another process holds the ``flock`` of ``lock_file`` (:func:`locked`) now: a
+    non-blocking probe that takes and releases the lock if it is free. False if the file is missing."""
+    try:
+        fd = os.open(lock_file, os.O_RDWR)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        return exc.errno in (errno.EAGAIN, errno.EACCES)
+    finally:
+        os.close(fd)  # releases the lock if it was taken here
+    return False
+
+
 def fsync(path: Path, directory: bool = False) -> None:
     """Flush ``path`` (a file, or with ``directory`` a folder's entries) to the disk."""
     fd = os.open(path, os.O_RDONLY if directory else os.O_RDWR)

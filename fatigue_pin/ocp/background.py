@@ -14,10 +14,7 @@ Ctrl-C of the run does not reach it. It compiles under the entry's lock with
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -25,24 +22,17 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
+from fatigue_pin.core.files import held
+
 if TYPE_CHECKING:
     from fatigue_pin.ocp.compiled import BuildOptions
 
 
 def compiling(entry: Path) -> bool:
     """Whether a process holds the build lock of cache entry ``entry`` (a compile under way)."""
-    lock = entry.with_name(entry.name + ".lock")
-    try:
-        fd = os.open(lock, os.O_RDWR)
-    except FileNotFoundError:
-        return False
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as exc:
-        return exc.errno in (errno.EAGAIN, errno.EACCES)
-    finally:
-        os.close(fd)  # releases the lock if it was taken here
-    return False
+    from fatigue_pin.ocp.compiled import lock_path
+
+    return held(lock_path(entry))
 
 
 def start(entry: Path, write_sources: Callable[[Path], Sequence[Path]], options: BuildOptions) -> bool:

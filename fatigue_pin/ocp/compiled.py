@@ -257,6 +257,11 @@ def library_key(
 # -- cache entries: checksum, lock, atomic write ---------------------------------------------------
 
 
+def lock_path(entry: Path) -> Path:
+    """The build lock of cache entry ``entry`` (``<entry>.lock``): held while it is compiled."""
+    return entry.with_name(entry.name + ".lock")
+
+
 def _checksum_path(entry: Path) -> Path:
     return entry.with_name(entry.name + ".sha256")
 
@@ -290,7 +295,7 @@ def cached_build(entry: Path, build: Callable[[Path], None]) -> bool:
     """
     if verify_entry(entry):
         return False
-    with locked(entry.with_name(entry.name + ".lock")):
+    with locked(lock_path(entry)):
         if verify_entry(entry):
             return False
         for stale in (_checksum_path(entry), entry):
