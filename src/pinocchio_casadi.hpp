@@ -15,11 +15,11 @@
 namespace fatigue_pin
 {
   /// Runs pinocchio::aba on casadi::SX symbols over `model` and returns the serialized casadi
-  /// Function aba(q, v, tau) -> ddq (pinocchio_casadi_aba.cpp).
+  /// Function aba(q, v, tau) -> ddq (pinocchio_casadi_rigid_body.cpp).
   std::string serialized_sx_aba(const pinocchio::Model & model);
 
   /// Runs pinocchio::rnea on casadi::SX symbols over `model` and returns the serialized casadi
-  /// Function rnea(q, v, a) -> tau (pinocchio_casadi_rnea.cpp).
+  /// Function rnea(q, v, a) -> tau (pinocchio_casadi_rigid_body.cpp).
   std::string serialized_sx_rnea(const pinocchio::Model & model);
 
   /// Runs pinocchio::computeABADerivatives on casadi::SX symbols over `model` and returns the
@@ -31,7 +31,7 @@ namespace fatigue_pin
   /// Runs pinocchio::forwardKinematics, updateFramePlacement and getFrameVelocity
   /// (LOCAL_WORLD_ALIGNED) on casadi::SX symbols for frame `frame_id` of `model` and returns the
   /// serialized casadi Functions position(q) -> p (3), rotation(q) -> R (3x3) and
-  /// velocity(q, v) -> pdot (3), all in the world frame (pinocchio_casadi_kinematics.cpp).
+  /// velocity(q, v) -> pdot (3), all in the world frame (pinocchio_casadi_rigid_body.cpp).
   std::tuple<std::string, std::string, std::string>
   serialized_sx_frame_kinematics(const pinocchio::Model & model, std::size_t frame_id);
 } // namespace fatigue_pin

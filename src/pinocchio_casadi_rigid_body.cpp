@@ -1,22 +1,59 @@
-// Frame kinematics evaluated on casadi::SX: Pinocchio's forwardKinematics, updateFramePlacement
-// and getFrameVelocity on CasADi symbols (a translation unit of its own, so that it compiles in
-// parallel with the dynamics).
+// Pinocchio's ABA, RNEA and frame kinematics evaluated on casadi::SX, in one translation unit:
+// they instantiate the same SX model, data and joint visitors, which one unit compiles once (35 s
+// of compiler CPU against about 70 s as three units; benchmarks/install_results_2cores_idle.txt).
+// The ABA derivatives, the heaviest, are a unit of their own and compile beside this one.
 //
-// pinocchio/autodiff/casadi.hpp must come before any other Pinocchio header.
+// pinocchio/autodiff/casadi.hpp must come before any other Pinocchio header: it teaches Eigen and
+// Pinocchio how to use casadi::SX as a scalar type.
 #include "pinocchio/autodiff/casadi.hpp"
 
 #include <stdexcept>
 #include <string>
 
 #include "pinocchio/multibody.hpp"
+#include "pinocchio/algorithm/aba.hpp"
 #include "pinocchio/algorithm/frames.hpp"
 #include "pinocchio/algorithm/kinematics.hpp"
+#include "pinocchio/algorithm/rnea.hpp"
 
 #include "pinocchio_casadi.hpp"
 #include "pinocchio_casadi_symbols.hpp"
 
 namespace fatigue_pin
 {
+  std::string serialized_sx_aba(const pinocchio::Model & model)
+  {
+    // Same model (inertias, placements, gravity, ...) with every number turned into an SX constant.
+    const ADModel ad_model = fixed_base_model(model).cast<SX>();
+    ADData ad_data(ad_model);
+    const ConfigSymbol q("q", model.nq);
+    const TangentSymbol v("v", model.nv), tau("tau", model.nv);
+
+    // Forward dynamics: ddq = ABA(q, v, tau).
+    pinocchio::aba(ad_model, ad_data, q.eigen, v.eigen, tau.eigen);
+    SX ddq(model.nv, 1);
+    pinocchio::casadi::copy(ad_data.ddq, ddq);
+    const ::casadi::Function aba(
+      "aba", {q.sx, v.sx, tau.sx}, {ddq}, {"q", "v", "tau"}, {"ddq"});
+    return aba.serialize();
+  }
+
+  std::string serialized_sx_rnea(const pinocchio::Model & model)
+  {
+    const ADModel ad_model = fixed_base_model(model).cast<SX>();
+    ADData ad_data(ad_model);
+    const ConfigSymbol q("q", model.nq);
+    const TangentSymbol v("v", model.nv), a("a", model.nv);
+
+    // Inverse dynamics: tau = RNEA(q, v, a).
+    pinocchio::rnea(ad_model, ad_data, q.eigen, v.eigen, a.eigen);
+    SX tau_out(model.nv, 1);
+    pinocchio::casadi::copy(ad_data.tau, tau_out);
+    const ::casadi::Function rnea(
+      "rnea", {q.sx, v.sx, a.sx}, {tau_out}, {"q", "v", "a"}, {"tau"});
+    return rnea.serialize();
+  }
+
   std::tuple<std::string, std::string, std::string>
   serialized_sx_frame_kinematics(const pinocchio::Model & model, std::size_t frame_id)
   {
