@@ -21,7 +21,9 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.core.text import shown
 from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.ocp.actuation import COUPLINGS
 from fatigue_pin.ocp.halves import FatigueGroup
 
 __all__ = ["ActuationLayer", "column"]
@@ -44,20 +46,37 @@ def column(x: Expr, n: int, what: str) -> Expr:
 class ActuationLayer:
     """The units of an actuation kind, each with its fatigue model (module docstring).
 
-    A kind sets ``_halves`` (its units: objects with ``name`` and ``params``, a FatigueModel),
-    ``_joint_names`` (every joint of the model) and ``_coupling`` (one of :data:`~fatigue_pin.ocp.actuation.COUPLINGS`), and
-    defines ``nu``, :meth:`target_loads`, :meth:`joint_torque`, :meth:`control_bounds`,
-    :meth:`control_scales` and :meth:`structure_key`.
+    A kind calls :meth:`_set_units` (its units: objects with ``name`` and ``params``, a
+    FatigueModel; every joint of the model; the coupling), and defines ``nu``,
+    :meth:`target_loads`, :meth:`joint_torque`, :meth:`control_bounds`, :meth:`control_scales`,
+    :meth:`structure_key` and :attr:`torque_follows_state`.
     """
 
     _halves: tuple
     _joint_names: tuple[str, ...]
     _coupling: str
 
-    #: whether the joint torque depends on the rigid-body state (q, qdot) within an interval
-    torque_needs_state = False
     #: whether the units are a plus and a minus half per joint (per-joint cost terms select them)
     units_per_joint = True
+
+    def _set_units(self, units: tuple, joint_names: tuple[str, ...], coupling: str, words: tuple[str, str]) -> None:
+        """Check the coupling against the units' fatigue models and keep the three: ``words`` are
+        the singular and plural of a unit in messages (``("half", "halves")``)."""
+        if coupling not in COUPLINGS:
+            raise ParameterError(f"coupling = {shown(coupling)}: expected one of {list(COUPLINGS)}")
+        if coupling == "active":
+            lacking = [u.name for u in units if u.params.active_state not in u.params.state_names]
+            if lacking:
+                raise ParameterError(f"coupling 'active' needs an active state in every {words[0]}'s fatigue model; "
+                                     f"{words[1]} {lacking} have none")
+        self._halves, self._joint_names, self._coupling = tuple(units), tuple(joint_names), coupling
+
+    @property
+    def torque_follows_state(self) -> bool:
+        """Whether the joint torque depends on the state (q, qdot or the fatigue states) within an
+        interval, so that the interval functions integrate the rigid body with it: under the
+        ``active`` coupling (the torque follows m_active)."""
+        return self._coupling == "active"
 
     def target_loads(self, u: Expr) -> Expr:
         """Target loads (dimensionless) of every unit, (n_units, K), from controls (nu, K)."""

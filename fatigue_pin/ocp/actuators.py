@@ -95,16 +95,8 @@ class SignedTorqueActuators(ActuationLayer):
             raise ParameterError(f"actuator halves drive joint(s) {unknown}, which are not among the joints {list(names)}")
         if [j for j in names if j in actuated] != actuated:
             raise ParameterError(f"actuator halves drive joints {actuated}: expected them in the order of the joints {list(names)}")
-        if coupling not in COUPLINGS:
-            raise ParameterError(f"coupling = {shown(coupling)}: expected one of {list(COUPLINGS)}")
-        if coupling == "active":
-            lacking = [h.name for h in halves if h.params.active_state not in h.params.state_names]
-            if lacking:
-                raise ParameterError(f"coupling 'active' needs an active state in every half's fatigue model; halves {lacking} have none")
-        self._halves = halves
-        self._joint_names = names
+        self._set_units(halves, names, coupling, ("half", "halves"))
         self._actuated = tuple(actuated)
-        self._coupling = coupling
 
     # -- construction --------------------------------------------------------------------------
 
@@ -365,8 +357,6 @@ class SignedTorqueActuators(ActuationLayer):
         if u.size1() != self.nu:
             raise DimensionError(f"controls u of shape {u.shape}: expected {self.nu} rows (tau_plus, tau_minus)")
         return u[self.control_rows(), :] / ca.repmat(ca.DM(self.signed_limits), 1, u.size2())
-
-
 
     def available_torque(self, mf: Expr) -> Expr:
         """Signed torque each half can still produce, ``(1 - mf) * limit`` (N m), shape (n_halves,):

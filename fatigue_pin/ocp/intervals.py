@@ -128,12 +128,12 @@ class IntervalFunctions:
         x = ca.SX.sym("x", nx)
         u_prev = ca.SX.sym("u_prev", nu)
         self.coupling = ca.Function("coupling", [x, u], [actuators.coupling(x[layout.m], u)], ["x", "u"], ["TL_plus_mf"])
-        #: under the ``active`` coupling the torque follows the active fraction of the halves
-        #: through the interval, so the rigid body is integrated with the fatigue states:
+        #: where the torque follows the state through the interval (the ``active`` coupling: the
+        #: halves' active fractions; muscles: q and qdot too), the rigid body is integrated with it:
         #: ``F_rb_active(y, m, u, p) -> y_next``, the y part of RK4 of (y, m) (its m part is
-        #: :attr:`F_fatigue`'s, m not depending on y); None under the other couplings
-        self.F_rb_active = (self._active_rigid_body(h, substeps)
-                            if actuators.coupling_kind == "active" or actuators.torque_needs_state else None)
+        #: :attr:`F_fatigue`'s, m not depending on y); None otherwise
+        #: (:attr:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.torque_follows_state`)
+        self.F_rb_active = self._active_rigid_body(h, substeps) if actuators.torque_follows_state else None
         v = IntervalVariables(x, u, u_prev, layout, model, actuators)
         integrands = [term.expression(v) for term in problem.costs if not term.terminal]
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt

@@ -11,7 +11,7 @@ With nm muscles on a model of nv joints (docs/muscles.md):
   activation by what is not fatigued) and ``a^eff = m_active`` under ``active`` (bioptim's: the
   force follows Xia's active fraction, which tracks TL while enough is rested);
 * the joint torque is ``r(q)^T F`` (nv,), so it depends on the rigid-body state: the interval
-  functions integrate the rigid body with it (:attr:`torque_needs_state`);
+  functions integrate the rigid body with it (:attr:`torque_follows_state`);
 * fatigue states: each muscle's model's states, muscle after muscle (:class:`ActuationLayer`).
 
 Residual torques (optional): signed torque actuators on the joints beside the muscles
@@ -31,11 +31,9 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.core.text import shown
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.muscles.muscle import Muscle
 from fatigue_pin.muscles.muscle_set import MuscleSet
-from fatigue_pin.ocp.actuation import COUPLINGS
 from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
 
@@ -70,26 +68,19 @@ class MuscleActuators(ActuationLayer):
         residuals: residual torque actuators on the same joints, or None (module docstring).
     """
 
-    torque_needs_state = True
     units_per_joint = False
+    #: the muscles' torque depends on q and qdot (moment arms, lengths, speeds)
+    torque_follows_state = True
 
     def __init__(self, joint_names: tuple[str, ...], muscles: MuscleSet, geometry: Any, params: MuscleParams,
                  coupling: str = "tl+mf<=1", residuals: SignedTorqueActuators | None = None) -> None:
-        if coupling not in COUPLINGS:
-            raise ParameterError(f"coupling = {shown(coupling)}: expected one of {list(COUPLINGS)}")
-        self._joint_names = tuple(joint_names)
-        self._coupling = coupling
+        units = tuple(MuscleUnit(m.name, self._params_of(m, params), m) for m in muscles.muscles)
+        self.n_muscles = len(units)
+        self._set_units(units + (residuals.halves if residuals is not None else ()), joint_names, coupling, ("unit", "units"))
         if residuals is not None and (residuals.coupling_kind != coupling or residuals.joint_names != self._joint_names):
             raise ParameterError(f"residual torques with coupling {residuals.coupling_kind!r} on joints {list(residuals.joint_names)}: "
                                  f"expected the muscles' coupling {coupling!r} on joints {list(self._joint_names)}")
         self.residuals = residuals
-        units = tuple(MuscleUnit(m.name, self._params_of(m, params), m) for m in muscles.muscles)
-        self.n_muscles = len(units)
-        self._halves = units + (residuals.halves if residuals is not None else ())
-        if coupling == "active":
-            lacking = [u.name for u in self._halves if u.params.active_state not in u.params.state_names]
-            if lacking:
-                raise ParameterError(f"coupling 'active' needs an active state in every muscle's fatigue model; {lacking} have none")
         self.muscles = muscles
         self.geometry = geometry
         nq = nv = len(self._joint_names)
@@ -119,11 +110,6 @@ class MuscleActuators(ActuationLayer):
     def nu(self) -> int:
         """Number of controls: one activation per muscle, then the residual halves' torques."""
         return self.n_muscles + (self.residuals.nu if self.residuals is not None else 0)
-
-    @property
-    def n_actuated(self) -> int:
-        """Number of units that take a control (muscles and residual halves)."""
-        return len(self._halves)
 
     def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Activations in [0, 1], then the residual halves' torque bounds (N m); each (nu,)."""

@@ -178,10 +178,9 @@ class Ocp:
 
     @property
     def torque_is_variable(self) -> bool:
-        """:attr:`Transcription.torque_variable`, but never under the ``active`` coupling (its
-        torque follows the states within the interval)."""
-        return (self.transcription.torque_variable and self.actuators.coupling_kind != "active"
-                and not self.actuators.torque_needs_state)
+        """:attr:`Transcription.torque_variable`, but never where the torque follows the state
+        within the interval (the ``active`` coupling, muscles)."""
+        return self.transcription.torque_variable and not self.actuators.torque_follows_state
 
     @property
     def map_mode(self) -> str:
