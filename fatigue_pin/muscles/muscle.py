@@ -25,7 +25,7 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.text import shown
 from fatigue_pin.muscles import curves
-from fatigue_pin.muscles.wraps import WrapUse
+from fatigue_pin.muscles.wraps import WrapUse, triple
 
 __all__ = ["MUSCLE_KINDS", "PathPoint", "Muscle"]
 
@@ -46,10 +46,7 @@ class PathPoint:
     location: tuple[float, float, float]
 
     def __post_init__(self) -> None:
-        a = np.asarray(self.location, dtype=float).reshape(-1) if not isinstance(self.location, str) else np.array([])
-        if a.shape != (3,) or not np.all(np.isfinite(a)):
-            raise ParameterError(f"path point on {self.frame!r}: location = {shown(self.location)}: expected three finite numbers (m)")
-        object.__setattr__(self, "location", tuple(float(x) for x in a))
+        object.__setattr__(self, "location", triple(self.location, f"path point on {self.frame!r}: location", " (m)"))
 
 
 def _positive(muscle: str, name: str, value: Any, unit: str, what: str, allow_zero: bool = False) -> float:

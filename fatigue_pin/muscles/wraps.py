@@ -33,7 +33,7 @@ import numpy as np
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.text import shown
 
-__all__ = ["TURNS", "CylinderWrap", "WrapUse", "wrapped_length", "euler_xyz"]
+__all__ = ["TURNS", "CylinderWrap", "WrapUse", "wrapped_length", "euler_xyz", "triple"]
 
 #: Which way a path goes round a cylinder (:class:`WrapUse`).
 TURNS = ("either", "positive", "negative")
@@ -48,10 +48,15 @@ def euler_xyz(angles: tuple[float, float, float]) -> np.ndarray:
     return rx @ ry @ rz
 
 
-def _triple(value: object, what: str) -> tuple[float, float, float]:
-    a = np.asarray(value, dtype=float).reshape(-1) if not isinstance(value, str) else np.array([])
+def triple(value: object, what: str, unit: str = "") -> tuple[float, float, float]:
+    """``value`` as three floats; ParameterError ``<what> = <value>: expected three finite
+    numbers<unit>`` otherwise (``unit`` e.g. ``" (m)"``)."""
+    try:
+        a = np.asarray(value, dtype=float).reshape(-1) if not isinstance(value, str) else np.array([])
+    except (TypeError, ValueError):
+        a = np.array([])
     if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ParameterError(f"{what} = {shown(value)}: expected three finite numbers")
+        raise ParameterError(f"{what} = {shown(value)}: expected three finite numbers{unit}")
     return (float(a[0]), float(a[1]), float(a[2]))
 
 
@@ -74,8 +79,8 @@ class CylinderWrap:
     radius: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "translation", _triple(self.translation, f"wrap {self.name!r} translation"))
-        object.__setattr__(self, "rotation", _triple(self.rotation, f"wrap {self.name!r} rotation"))
+        object.__setattr__(self, "translation", triple(self.translation, f"wrap {self.name!r} translation"))
+        object.__setattr__(self, "rotation", triple(self.rotation, f"wrap {self.name!r} rotation"))
         r = self.radius
         if isinstance(r, bool) or not isinstance(r, (int, float, np.floating, np.integer)) or not math.isfinite(r) or r <= 0:
             raise ParameterError(f"wrap {self.name!r} radius = {shown(r)}: expected a cylinder radius > 0 (m)")
