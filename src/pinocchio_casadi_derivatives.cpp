@@ -15,23 +15,21 @@ namespace fatigue_pin
 {
   std::string serialized_sx_aba_derivatives(const pinocchio::Model & model)
   {
-    const ADModel ad_model = fixed_base_model(model).cast<SX>();
-    ADData ad_data(ad_model);
-    const ConfigSymbol q("q", model.nq);
-    const TangentSymbol v("v", model.nv), tau("tau", model.nv);
+    SXModel s(model);
+    const TangentSymbol tau("tau", model.nv);
 
     // ddq and its partial derivatives (Carpentier & Mansard, RSS 2018); Minv = d ddq / d tau.
-    pinocchio::computeABADerivatives(ad_model, ad_data, q.eigen, v.eigen, tau.eigen);
+    pinocchio::computeABADerivatives(s.model, s.data, s.q.eigen, s.v.eigen, tau.eigen);
     // only the upper triangle of Minv is filled
-    ad_data.Minv.template triangularView<Eigen::StrictlyLower>() =
-      ad_data.Minv.transpose().template triangularView<Eigen::StrictlyLower>();
+    s.data.Minv.template triangularView<Eigen::StrictlyLower>() =
+      s.data.Minv.transpose().template triangularView<Eigen::StrictlyLower>();
     SX ddq(model.nv, 1), ddq_dq(model.nv, model.nv), ddq_dv(model.nv, model.nv), minv(model.nv, model.nv);
-    pinocchio::casadi::copy(ad_data.ddq, ddq);
-    pinocchio::casadi::copy(ad_data.ddq_dq, ddq_dq);
-    pinocchio::casadi::copy(ad_data.ddq_dv, ddq_dv);
-    pinocchio::casadi::copy(ad_data.Minv, minv);
+    pinocchio::casadi::copy(s.data.ddq, ddq);
+    pinocchio::casadi::copy(s.data.ddq_dq, ddq_dq);
+    pinocchio::casadi::copy(s.data.ddq_dv, ddq_dv);
+    pinocchio::casadi::copy(s.data.Minv, minv);
     const ::casadi::Function f(
-      "aba_derivatives", {q.sx, v.sx, tau.sx}, {ddq, ddq_dq, ddq_dv, minv}, {"q", "v", "tau"},
+      "aba_derivatives", {s.q.sx, s.v.sx, tau.sx}, {ddq, ddq_dq, ddq_dv, minv}, {"q", "v", "tau"},
       {"ddq", "ddq_dq", "ddq_dv", "Minv"});
     return f.serialize();
   }

@@ -23,35 +23,26 @@ namespace fatigue_pin
 {
   std::string serialized_sx_aba(const pinocchio::Model & model)
   {
-    // Same model (inertias, placements, gravity, ...) with every number turned into an SX constant.
-    const ADModel ad_model = fixed_base_model(model).cast<SX>();
-    ADData ad_data(ad_model);
-    const ConfigSymbol q("q", model.nq);
-    const TangentSymbol v("v", model.nv), tau("tau", model.nv);
+    SXModel s(model);
+    const TangentSymbol tau("tau", model.nv);
 
     // Forward dynamics: ddq = ABA(q, v, tau).
-    pinocchio::aba(ad_model, ad_data, q.eigen, v.eigen, tau.eigen);
+    pinocchio::aba(s.model, s.data, s.q.eigen, s.v.eigen, tau.eigen);
     SX ddq(model.nv, 1);
-    pinocchio::casadi::copy(ad_data.ddq, ddq);
-    const ::casadi::Function aba(
-      "aba", {q.sx, v.sx, tau.sx}, {ddq}, {"q", "v", "tau"}, {"ddq"});
-    return aba.serialize();
+    pinocchio::casadi::copy(s.data.ddq, ddq);
+    return ::casadi::Function("aba", {s.q.sx, s.v.sx, tau.sx}, {ddq}, {"q", "v", "tau"}, {"ddq"}).serialize();
   }
 
   std::string serialized_sx_rnea(const pinocchio::Model & model)
   {
-    const ADModel ad_model = fixed_base_model(model).cast<SX>();
-    ADData ad_data(ad_model);
-    const ConfigSymbol q("q", model.nq);
-    const TangentSymbol v("v", model.nv), a("a", model.nv);
+    SXModel s(model);
+    const TangentSymbol a("a", model.nv);
 
     // Inverse dynamics: tau = RNEA(q, v, a).
-    pinocchio::rnea(ad_model, ad_data, q.eigen, v.eigen, a.eigen);
-    SX tau_out(model.nv, 1);
-    pinocchio::casadi::copy(ad_data.tau, tau_out);
-    const ::casadi::Function rnea(
-      "rnea", {q.sx, v.sx, a.sx}, {tau_out}, {"q", "v", "a"}, {"tau"});
-    return rnea.serialize();
+    pinocchio::rnea(s.model, s.data, s.q.eigen, s.v.eigen, a.eigen);
+    SX tau(model.nv, 1);
+    pinocchio::casadi::copy(s.data.tau, tau);
+    return ::casadi::Function("rnea", {s.q.sx, s.v.sx, a.sx}, {tau}, {"q", "v", "a"}, {"tau"}).serialize();
   }
 
   std::tuple<std::string, std::string, std::string>
@@ -62,32 +53,28 @@ namespace fatigue_pin
         "frame id " + std::to_string(frame_id) + " is not a frame of the model (it has "
         + std::to_string(model.frames.size()) + " frames)");
 
-    const ADModel ad_model = fixed_base_model(model).cast<SX>();
-    ADData ad_data(ad_model);
+    SXModel s(model);
     const std::string & name = model.frames[frame_id].name;
 
-    const ConfigSymbol q("q", model.nq);
-    const TangentSymbol v("v", model.nv);
-
     // Placement of the frame in the world: joint placements, then the frame's own placement.
-    pinocchio::forwardKinematics(ad_model, ad_data, q.eigen, v.eigen);
-    const auto & oMf = pinocchio::updateFramePlacement(ad_model, ad_data, frame_id);
+    pinocchio::forwardKinematics(s.model, s.data, s.q.eigen, s.v.eigen);
+    const auto & oMf = pinocchio::updateFramePlacement(s.model, s.data, frame_id);
     SX p(3, 1), R(3, 3);
     pinocchio::casadi::copy(oMf.translation(), p);
     pinocchio::casadi::copy(oMf.rotation(), R);
 
     // Velocity of the frame's origin in the world axes (LOCAL_WORLD_ALIGNED).
     const auto vel = pinocchio::getFrameVelocity(
-      ad_model, ad_data, frame_id, pinocchio::LOCAL_WORLD_ALIGNED);
+      s.model, s.data, frame_id, pinocchio::LOCAL_WORLD_ALIGNED);
     SX pdot(3, 1);
     pinocchio::casadi::copy(vel.linear(), pdot);
 
     const ::casadi::Function position(
-      name + "_position", {q.sx}, {p}, {"q"}, {"p"});
+      name + "_position", {s.q.sx}, {p}, {"q"}, {"p"});
     const ::casadi::Function rotation(
-      name + "_rotation", {q.sx}, {R}, {"q"}, {"R"});
+      name + "_rotation", {s.q.sx}, {R}, {"q"}, {"R"});
     const ::casadi::Function velocity(
-      name + "_velocity", {q.sx, v.sx}, {pdot}, {"q", "v"}, {"pdot"});
+      name + "_velocity", {s.q.sx, s.v.sx}, {pdot}, {"q", "v"}, {"pdot"});
     return {position.serialize(), rotation.serialize(), velocity.serialize()};
   }
 } // namespace fatigue_pin

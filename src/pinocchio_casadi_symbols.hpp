@@ -119,4 +119,23 @@ namespace fatigue_pin
 
   using ConfigSymbol = Symbol<ADModel::ConfigVectorType>;
   using TangentSymbol = Symbol<ADModel::TangentVectorType>;
+
+  /// What every SX algorithm starts from: the same model (inertias, placements, gravity, ...) on
+  /// the fixed-base joint collection with every number turned into an SX constant, its data, and
+  /// the symbols q (nq) and v (nv).
+  struct SXModel
+  {
+    ADModel model;
+    ADData data;
+    ConfigSymbol q;
+    TangentSymbol v;
+
+    explicit SXModel(const pinocchio::Model & numeric)
+    : model(fixed_base_model(numeric).cast<SX>())
+    , data(model)
+    , q("q", numeric.nq)
+    , v("v", numeric.nv)
+    {
+    }
+  };
 } // namespace fatigue_pin
