@@ -115,7 +115,7 @@ class FixedMomentArms:
         q, v = ca.SX.sym("q", nv), ca.SX.sym("v", nv)
         R = ca.DM(r)
         self.lengths = ca.Function("muscle_lengths", [q], [ca.DM(L0) - ca.mtimes(R, q)], ["q"], ["L"])
-        self.moment_arms = ca.Function("muscle_moment_arms", [q], [R + 0 * ca.repmat(ca.sum1(q), nm, nv)], ["q"], ["r"])
+        self.moment_arms = ca.Function("muscle_moment_arms", [q], [ca.SX(R)], ["q"], ["r"])
         self.speeds = ca.Function("muscle_speeds", [q, v], [-ca.mtimes(R, v)], ["q", "v"], ["Ldot"])
 
     def joint_torque(self, q: ca.SX, forces: ca.SX) -> ca.SX:
