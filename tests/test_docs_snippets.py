@@ -217,6 +217,9 @@ AFTER: dict[tuple[str, str], list[str]] = {
     ("porting.md", "fatigue-pin run studies/bioptim_pendulum_xia.toml --out pendulum.h5"): ["--set", "transcription.substeps=4"],
     ("porting.md", "fatigue-pin run studies/bioptim_pendulum_xia.toml --out fine.h5 --set transcription.substeps=20"):
         ["--set", "transcription.substeps=20"],
+    # the UR5 carry's sliding run as one window of one cycle (the page's later commands read its run)
+    ("robot-study.md", "fatigue-pin run studies/ur5_carry.toml --out carry.h5"):
+        ["--set", "horizon.cycles=1", "--set", "horizon.max_cycles=1"],
 }
 #: Commands that take minutes even on small settings: marked slow.
 SLOW = {("getting-started.md", ".venv/bin/fatigue-pin demo"),
