@@ -258,8 +258,11 @@ class Study:
         return build(SECTIONS["actuators"], self.data["actuators"], "actuators")
 
     def actuators(self, model):
-        """The :class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators` of ``model`` with the
-        fatigue models of ``[fatigue]`` and the passive joints and coupling of ``[actuators]``."""
+        """The actuation layer of ``model`` (``[actuators] kind``): the
+        :class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators` with the fatigue models of
+        ``[fatigue]`` and the passive joints and coupling of ``[actuators]``, or the
+        :class:`~fatigue_pin.ocp.muscle_actuators.MuscleActuators` of ``[model] muscles``
+        (:meth:`muscle_actuators`)."""
         from fatigue_pin.ocp.actuators import SignedTorqueActuators
 
         actuation = self.actuation()
@@ -267,7 +270,65 @@ class Study:
         if unknown:
             raise StudyError(f"actuators.passive = {shown(list(actuation.passive))}: joint {unknown[0]!r} is not in model "
                              f"{model.name!r}; its joints are {list(model.joint_names)}")
+        if actuation.kind == "muscles":
+            return self.muscle_actuators(model)
+        if self.data["fatigue"].get("muscles"):
+            raise StudyError("fatigue.muscles: per-muscle fatigue models need muscles; expected [actuators] kind = \"muscles\"")
         return SignedTorqueActuators.from_model(model, self.fatigue_spec(model), actuation)
+
+    def muscles(self):
+        """The :class:`~fatigue_pin.muscles.muscle_set.MuscleSet` of ``[model] muscles``."""
+        from fatigue_pin.muscles.files import load_muscles
+
+        source = self.data["model"].get("muscles", "")
+        if not source:
+            raise StudyError('actuators.kind = "muscles": the model has no muscles; expected [model] muscles = a bundled muscle file '
+                             '("arm26") or a muscle file path')
+        try:
+            return load_muscles(source)
+        except FatiguePinError as exc:
+            raise StudyError(f"model.muscles = {source!r}: {exc}") from None
+
+    def muscle_actuators(self, model):
+        """The :class:`~fatigue_pin.ocp.muscle_actuators.MuscleActuators` of ``model``: the muscles
+        of ``[model] muscles`` on its frames (:class:`~fatigue_pin.muscles.geometry.MuscleGeometry`),
+        each with the fatigue model of ``[fatigue]`` (or of ``[fatigue.muscles.<muscle or group>]``),
+        and residual torques of +-``actuators.residuals`` N m on every joint but the passive ones,
+        fatigable with ``actuators.residual_fatigue``."""
+        import numpy as np
+
+        from fatigue_pin.muscles.geometry import MuscleGeometry
+        from fatigue_pin.ocp.actuators import SignedTorqueActuators
+        from fatigue_pin.ocp.muscle_actuators import MuscleActuators
+
+        actuation = self.actuation()
+        muscles = self.muscles()
+        fat = self.data["fatigue"]
+        base = _fatigue_model(fat, None)
+        names = set(muscles.names) | {m.group for m in muscles.muscles if m.group}
+        params: dict = {m.name: base for m in muscles.muscles}
+        for key, sub in fat.get("muscles", {}).items():
+            if key not in names:
+                raise StudyError(f"fatigue.muscles.{key}: {key!r} is neither a muscle nor a group of {self.data['model']['muscles']!r}; "
+                                 f"its muscles are {list(muscles.names)}")
+            model_k = _fatigue_model(sub, fat)
+            for m in muscles.muscles:  # a muscle's own table wins over its group's
+                if m.name == key or (m.group == key and m.name not in fat["muscles"]):
+                    params[m.name] = model_k
+        if fat.get("joints") and not (actuation.residuals > 0 and actuation.residual_fatigue):
+            raise StudyError("fatigue.joints: with muscles, per-joint fatigue models are those of the residual torques; expected "
+                             "actuators.residuals > 0 and actuators.residual_fatigue = true, or fatigue.muscles for the muscles")
+        residuals = None
+        if actuation.residuals > 0:
+            n = len(model.joint_names)
+            spec = self.fatigue_spec(model) if actuation.residual_fatigue else base.with_(F=0.0, R=0.0)
+            residuals = SignedTorqueActuators.from_limits(model.joint_names, -actuation.residuals * np.ones(n),
+                                                          actuation.residuals * np.ones(n), spec, actuation)
+        try:
+            geometry = MuscleGeometry(model.pin_model, muscles)
+            return MuscleActuators(model.joint_names, muscles, geometry, params, actuation.coupling, residuals)
+        except FatiguePinError as exc:
+            raise StudyError(f"model.muscles = {self.data['model']['muscles']!r}: {exc}") from None
 
     def transcription(self):
         """The :class:`~fatigue_pin.ocp.transcription.Transcription` of ``[transcription]``."""
@@ -453,6 +514,9 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
 
     check_run_slot(out, name) if out is not None else check_run_name(name)  # nothing but a run of that name in its place
     horizon = study.horizon_settings()
+    if study.actuation().kind != "torque":  # before any work
+        raise StudyError(f"actuators.kind = {study.actuation().kind!r}: the drivers do not store runs of muscle studies yet; expected "
+                         "kind = \"torque\", or a solve in Python (Study.problem() with Ocp, docs/muscles.md)")
     job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
                ResultFile(out) if out is not None else None, name, resume, as_reporter(progress))
     defaults = study.solver_defaults()  # the study is valid: say which settings IPOPT would not have chosen

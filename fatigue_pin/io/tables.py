@@ -129,10 +129,11 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
         raise StudyError(f"{where}.model = {kind!r}: expected one of {sorted(FATIGUE_MODELS)}")
     out["model"] = kind
     params = FATIGUE_MODELS[kind].param_names
-    allowed = set(params) | set(FATIGUE_MODELS[kind].option_names) | {"model", "preset", "joints", "plus", "minus"}
+    allowed = set(params) | set(FATIGUE_MODELS[kind].option_names) | {"model", "preset", "joints", "muscles", "plus", "minus"}
     for key, value in out.items():
         if key not in allowed:
-            raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints' or a parameter of {kind!r}: {list(params)}")
+            raise StudyError(f"unknown key {where}.{key}; expected 'model', 'preset', 'joints', 'muscles' or a parameter of {kind!r}: "
+                             f"{list(params)}")
         if key in params and (not is_toml_number(value) or not math.isfinite(float(value)) or value < 0):
             unit = FATIGUE_MODELS[kind].param_units[params.index(key)]
             raise StudyError(f"{where}.{key} = {shown(value)}: expected " + ("a finite rate >= 0 (1/s)" if unit == "1/s" else "a finite number >= 0"))
@@ -146,6 +147,12 @@ def _fatigue_table(table: Any, where: str = "fatigue") -> dict[str, Any]:
         if not isinstance(out["joints"], dict):
             raise StudyError(f"fatigue.joints = {shown(out['joints'])}: expected a table of joint names")
         out["joints"] = {j: _fatigue_table(t, f"fatigue.joints.{j}") for j, t in out["joints"].items()}
+    if "muscles" in out:  # per muscle or muscle group (names checked against the model's muscles, later)
+        if where != "fatigue":
+            raise StudyError(f"{where}.muscles: per-muscle overrides only in [fatigue]")
+        if not isinstance(out["muscles"], dict):
+            raise StudyError(f"fatigue.muscles = {shown(out['muscles'])}: expected a table of muscle or group names")
+        out["muscles"] = {m: _fatigue_table(t, f"fatigue.muscles.{m}") for m, t in out["muscles"].items()}
     for half in ("plus", "minus"):
         if half in out:
             if where == "fatigue":

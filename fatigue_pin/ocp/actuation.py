@@ -1,14 +1,23 @@
-"""The ``[actuators]`` settings of a problem: which joints are passive and how each actuator
-half's torque is coupled to its fatigue (docs/model.md, "Passive joints" and "Couplings");
-:class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators` applies them."""
+"""The ``[actuators]`` settings of a problem: the actuator kind (signed torque halves on the
+joints, or the model's muscles with optional residual torques), which joints are passive and how
+each actuator's torque is coupled to its fatigue (docs/model.md, "Passive joints" and
+"Couplings"; docs/muscles.md); :class:`~fatigue_pin.ocp.actuators.SignedTorqueActuators` and
+:class:`~fatigue_pin.ocp.muscle_actuators.MuscleActuators` apply them."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from fatigue_pin.core.settings import check_fields, is_strs, setting
+import math
 
-__all__ = ["COUPLINGS", "Actuation"]
+from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.settings import check_fields, is_bool, is_number, is_strs, setting
+
+__all__ = ["ACTUATOR_KINDS", "COUPLINGS", "Actuation"]
+
+#: The actuator kinds of a study: ``torque``: signed torque halves on the joints; ``muscles``: the
+#: muscles of ``[model] muscles`` (docs/muscles.md).
+ACTUATOR_KINDS = ("torque", "muscles")
 
 #: How the torque of a half and its fatigue are coupled (docs/model.md, "Couplings"):
 #: ``tl+mf<=1``: the torque is the control, fatigue is integrated from its target load TL, and
@@ -20,18 +29,31 @@ COUPLINGS = ("tl+mf<=1", "observed", "active")
 
 @dataclass(frozen=True)
 class Actuation:
-    """The ``[actuators]`` table of a study: which joints are passive and how the torque and the
-    fatigue are coupled.
+    """The ``[actuators]`` table of a study: the actuator kind, which joints are passive and how
+    the torque and the fatigue are coupled.
 
     Attributes:
-        passive: joints without an actuator (no halves, no fatigue states, torque 0); a joint
-            whose URDF effort limit is 0 is passive too, named here or not.
-        coupling: one of :data:`COUPLINGS` (docs/model.md).
+        kind: one of :data:`ACTUATOR_KINDS`.
+        passive: joints without a torque actuator (no halves, no fatigue states, torque 0); a
+            joint whose URDF effort limit is 0 is passive too, named here or not. With muscles:
+            joints without a residual torque.
+        coupling: one of :data:`COUPLINGS` (docs/model.md), for every actuator.
+        residuals: with muscles, the bound of a residual torque on each joint (N m, +-residuals),
+            0: none.
+        residual_fatigue: with muscles, the residual torques tire with the study's fatigue
+            models (true), or not (false: their models' F and R are 0, so that they never tire).
     """
 
+    kind: str = setting("torque", f"one of {list(ACTUATOR_KINDS)}", lambda v: v in ACTUATOR_KINDS)
     passive: tuple[str, ...] = setting((), "a list of joint names", is_strs)
     coupling: str = setting("tl+mf<=1", f"one of {list(COUPLINGS)}", lambda v: v in COUPLINGS)
+    residuals: float = setting(0.0, "a finite torque bound >= 0 (N m; 0: no residual torques)",
+                               lambda v: is_number(v) and math.isfinite(v) and v >= 0)
+    residual_fatigue: bool = setting(False, "true or false", is_bool)
 
     def __post_init__(self) -> None:
         check_fields(self)
         object.__setattr__(self, "passive", tuple(self.passive))
+        if self.kind != "muscles" and self.residuals > 0:
+            raise ParameterError(f"Actuation.residuals = {self.residuals:g}: residual torques go beside muscles; expected "
+                                 "kind = 'muscles', or residuals = 0")

@@ -422,6 +422,9 @@ class ModelSource:
         payload: a rigid load fixed to a frame (:class:`Payload`), part of the dynamics; None: none.
         locked_joints: joints held fixed, name -> position (rad or m) within the joint's limits
             (:func:`lock_joints`, e.g. the Panda's fingers); None: none.
+        muscles: the model's muscles: a bundled muscle file (``arm26``) or the path of a muscle
+            file (docs/muscles.md); "": none. They drive the joints under ``[actuators] kind =
+            "muscles"``.
     """
 
     urdf: str = setting(expected="a bundled model name, an example-robot-data name or a URDF path",
@@ -431,6 +434,7 @@ class ModelSource:
                                       lambda v: isinstance(v, Payload))
     locked_joints: dict[str, float] | None = setting(None, "a table { joint name = position (rad or m), ... }",
                                                      lambda v: isinstance(v, dict))
+    muscles: str = setting("", "a bundled muscle file name (arm26) or a muscle file path", lambda v: isinstance(v, (str, Path)))
 
     def __post_init__(self) -> None:
         check_fields(self, ModelError)
