@@ -306,15 +306,14 @@ class Study:
         fat = self.data["fatigue"]
         base = _fatigue_model(fat, None)
         names = set(muscles.names) | {m.group for m in muscles.muscles if m.group}
-        params: dict = {m.name: base for m in muscles.muscles}
-        for key, sub in fat.get("muscles", {}).items():
-            if key not in names:
-                raise StudyError(f"fatigue.muscles.{key}: {key!r} is neither a muscle nor a group of {self.data['model']['muscles']!r}; "
-                                 f"its muscles are {list(muscles.names)}")
-            model_k = _fatigue_model(sub, fat)
-            for m in muscles.muscles:  # a muscle's own table wins over its group's
-                if m.name == key or (m.group == key and m.name not in fat["muscles"]):
-                    params[m.name] = model_k
+        overrides = fat.get("muscles", {})
+        unknown = [key for key in overrides if key not in names]
+        if unknown:
+            raise StudyError(f"fatigue.muscles.{unknown[0]}: {unknown[0]!r} is neither a muscle nor a group of "
+                             f"{self.data['model']['muscles']!r}; its muscles are {list(muscles.names)}")
+        # by muscle or group name, as MuscleActuators resolves them (a muscle's own wins over its group's)
+        params = {**{m.name: base for m in muscles.muscles if m.name not in overrides and m.group not in overrides},
+                  **{key: _fatigue_model(sub, fat) for key, sub in overrides.items()}}
         if fat.get("joints") and not (actuation.residuals > 0 and actuation.residual_fatigue):
             raise StudyError("fatigue.joints: with muscles, per-joint fatigue models are those of the residual torques; expected "
                              "actuators.residuals > 0 and actuators.residual_fatigue = true, or fatigue.muscles for the muscles")
@@ -514,8 +513,9 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
 
     check_run_slot(out, name) if out is not None else check_run_name(name)  # nothing but a run of that name in its place
     horizon = study.horizon_settings()
-    if study.actuation().kind != "torque":  # before any work
-        raise StudyError(f"actuators.kind = {study.actuation().kind!r}: the drivers do not store runs of muscle studies yet; expected "
+    kind = study.actuation().kind
+    if kind != "torque":  # before any work
+        raise StudyError(f"actuators.kind = {kind!r}: the drivers do not store runs of muscle studies yet; expected "
                          "kind = \"torque\", or a solve in Python (Study.problem() with Ocp, docs/muscles.md)")
     job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
                ResultFile(out) if out is not None else None, name, resume, as_reporter(progress))

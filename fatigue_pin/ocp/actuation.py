@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import math
-
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.settings import check_fields, is_bool, is_number, is_strs, setting
 
@@ -48,7 +46,7 @@ class Actuation:
     passive: tuple[str, ...] = setting((), "a list of joint names", is_strs)
     coupling: str = setting("tl+mf<=1", f"one of {list(COUPLINGS)}", lambda v: v in COUPLINGS)
     residuals: float = setting(0.0, "a finite torque bound >= 0 (N m; 0: no residual torques)",
-                               lambda v: is_number(v) and math.isfinite(v) and v >= 0)
+                               lambda v: is_number(v) and v >= 0)
     residual_fatigue: bool = setting(False, "true or false", is_bool)
 
     def __post_init__(self) -> None:
