@@ -173,3 +173,39 @@ def arm26_geometry_unwrapped(arm26, arm26_muscles):
     from fatigue_pin.muscles.geometry import MuscleGeometry
 
     return MuscleGeometry(arm26.pin_model, arm26_muscles.without_wraps())
+
+
+def two_muscle_file(folder) -> str:
+    """A muscle file of two of arm26's bundled muscles, the brachialis and the lateral triceps
+    (with the humeral cylinder), written in ``folder``; its path."""
+    from pathlib import Path
+
+    from fatigue_pin.muscles.files import bundled_muscles
+
+    head, *blocks = bundled_muscles("arm26").read_text().split("[[muscles]]")
+    keep = [b for b in blocks if b.split('"')[1] in ("BRA", "TRIlat")]
+    path = Path(folder) / "two.muscles.toml"
+    path.write_text(head + "".join("[[muscles]]" + b for b in keep))
+    return str(path)
+
+
+def muscle_curl(muscles: str = "arm26", **changes):
+    """The small curl (one cycle) driven by ``muscles`` with +-50 N m residual torques that do not
+    tire; costs: fatigue, controls, the shoulder's posture (the torque rate is per joint)."""
+    return small_curl("full").replace({
+        "model.muscles": muscles, "actuators.kind": "muscles", "actuators.residuals": 50.0, "horizon.cycles": 1,
+        "costs": {"fatigue": 1e3, "torque": 1.0, "posture": {"weight": 1e5, "joints": ["shoulder"]}}, **changes})
+
+
+@pytest.fixture(scope="session")
+def two_muscle_run(tmp_path_factory):
+    """The one-cycle small curl on two muscles, run by ``run_study`` into an HDF5 file:
+    (study, path of the file, the run read back). About 6 s."""
+    from fatigue_pin.io.results import read_run
+    from fatigue_pin.io.study import run_study
+
+    folder = tmp_path_factory.mktemp("two_muscles")
+    study = muscle_curl(two_muscle_file(folder))
+    out = folder / "muscles.h5"
+    run_study(study, out=out, name="full/two_muscles")
+    return study, out, read_run(out, "full/two_muscles")

@@ -17,6 +17,7 @@ import re
 import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
+from collections.abc import Collection
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -71,7 +72,14 @@ class RunResult:
         study: the TOML text of the study that produced the run, or "" (built in Python).
         fatigued: the fatigued fraction of every half (each model's fatigued state), (nodes, halves).
         extras: further arrays of a driver, by name (numeric or structured; e.g. the closed loop's
-            re-plan table, measurements, prediction and estimate, :mod:`fatigue_pin.drivers.mpc`).
+            re-plan table, measurements, prediction and estimate, :mod:`fatigue_pin.drivers.mpc`;
+            a muscle run's ``muscle_force`` (intervals, muscles), N, and ``joint_torque``
+            (intervals, nv), N m or N, at the start of every interval).
+        unit_controls: for actuator kinds other than torque halves (attribute ``actuation``),
+            the control of every unit of :attr:`actuator_names`, (intervals, units): a muscle's
+            activation (1), a residual half's torque (N m or N); None for torque halves (their
+            controls are ``tau_plus`` and ``tau_minus``, which then hold the residual torques).
+        muscles: the muscle file's text of a muscle run (so the file reproduces itself), or "".
     """
 
     name: str
@@ -94,6 +102,8 @@ class RunResult:
     fatigued: np.ndarray | None = None
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     joint_kinds: tuple[str, ...] = ()
+    unit_controls: np.ndarray | None = None
+    muscles: str = ""
 
     def __post_init__(self) -> None:
         if self.fatigued is None:
@@ -118,6 +128,22 @@ class RunResult:
         name = self.actuator_names[half] if isinstance(half, int) else half
         return self.joint_units(name.rpartition("_")[0])
 
+    @property
+    def actuation(self) -> str:
+        """The actuator kind of the run (``torque``: signed torque halves; ``muscles``)."""
+        return str(self.attrs.get("actuation", "torque"))
+
+    @property
+    def muscle_names(self) -> tuple[str, ...]:
+        """The muscles among :attr:`actuator_names` (the first units of a muscle run), or ()."""
+        raw = self.attrs.get("muscle_names")
+        return tuple(json.loads(raw)) if isinstance(raw, str) and raw else ()
+
+    def unit_effort(self, unit: int) -> str:
+        """The unit of the control of actuator unit ``unit`` (its column): ``1`` for a muscle's
+        activation, else the effort unit of the joint its half drives (N m or N)."""
+        return "1" if self.actuator_names[unit] in self.muscle_names else self.half_units(unit).effort
+
     def check_shapes(self) -> None:
         """Refuse a run whose arrays disagree (a damaged or hand-edited file): every array 2-D
         where a table is expected, nodes = intervals + 1 = cycles * intervals_per_cycle + 1,
@@ -128,7 +154,7 @@ class RunResult:
 
         arrays = {"q": self.q, "qdot": self.qdot, "tau_plus": self.tau_plus, "tau_minus": self.tau_minus,
                   "cycle_costs": self.cycle_costs, "torque_limits": self.torque_limits, "fatigued": self.fatigued,
-                  **self.fatigue}
+                  **self.fatigue, **({"unit_controls": self.unit_controls} if self.unit_controls is not None else {})}
         if np.ndim(self.t) != 1:
             raise bad(f"t has shape {np.shape(self.t)}")
         for key, a in arrays.items():
@@ -138,7 +164,8 @@ class RunResult:
                 raise bad(f"{key} holds {np.asarray(a).dtype} values, not numbers")
         nodes, cycles = self.t.shape[0], self.cycle_costs.shape[0]
         rows = {"q": nodes, "qdot": nodes, "fatigued": nodes, **{k: nodes for k in self.fatigue},
-                "tau_plus": max(nodes - 1, 0), "tau_minus": max(nodes - 1, 0), "torque_limits": cycles}
+                "tau_plus": max(nodes - 1, 0), "tau_minus": max(nodes - 1, 0), "torque_limits": cycles,
+                **({"unit_controls": max(nodes - 1, 0)} if self.unit_controls is not None else {})}
         wrong = {k: arrays[k].shape[0] for k, n in rows.items() if arrays[k].shape[0] != n}
         if wrong:
             raise bad(f"t has {nodes} nodes and cycle_costs {cycles} cycles, but the rows of {wrong} disagree")
@@ -146,7 +173,8 @@ class RunResult:
             raise bad(f"{nodes - 1} intervals do not make {cycles} equal cycles")
         columns = {"q": len(self.joint_names), "qdot": len(self.joint_names), "tau_plus": len(self.joint_names),
                    "tau_minus": len(self.joint_names), "cycle_costs": len(self.cost_terms), "fatigued": len(self.actuator_names),
-                   "torque_limits": len(self.actuator_names), **{k: len(self.actuator_names) for k in self.fatigue}}
+                   "torque_limits": len(self.actuator_names), **{k: len(self.actuator_names) for k in self.fatigue},
+                   **({"unit_controls": len(self.actuator_names)} if self.unit_controls is not None else {})}
         wrong = {k: arrays[k].shape[1] for k, n in columns.items() if arrays[k].shape[1] != n}
         if wrong:
             raise bad(f"the columns of {wrong} disagree with the labels ({len(self.joint_names)} joints, "
@@ -180,7 +208,10 @@ class RunResult:
     def half_torques(self) -> np.ndarray:
         """Torque of every half on every interval (N m), (intervals, halves), in the order of
         :attr:`actuator_names` (``<joint>_plus`` from ``tau_plus``, ``<joint>_minus`` from
-        ``tau_minus``)."""
+        ``tau_minus``). For a run of another actuator kind, the control of every unit
+        (:attr:`unit_controls`: a muscle's activation, a residual half's torque)."""
+        if self.unit_controls is not None:
+            return np.asarray(self.unit_controls, dtype=float)
         columns = []
         for name in self.actuator_names:
             joint, side = half_joint(name)
@@ -193,7 +224,7 @@ class RunResult:
     @property
     def passive_joints(self) -> tuple[str, ...]:
         """The joints without actuator halves."""
-        driven = {half_joint(n)[0] for n in self.actuator_names}
+        driven = {half_joint(n)[0] for n in self.actuator_names if n not in self.muscle_names}
         return tuple(j for j in self.joint_names if j not in driven)
 
     @property
@@ -253,12 +284,16 @@ def half_joint(name: str) -> tuple[str, str]:
     return joint, side
 
 
-def joint_columns(run_joints: tuple[str, ...], halves: tuple[str, ...], tau_halves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def joint_columns(run_joints: tuple[str, ...], halves: tuple[str, ...], tau_halves: np.ndarray,
+                  skip: Collection[str] = ()) -> tuple[np.ndarray, np.ndarray]:
     """``(tau_plus, tau_minus)``, each (intervals, joints) with 0 on joints without a half, from
-    the torques of the named halves (intervals, halves): the inverse of :meth:`RunResult.half_torques`."""
+    the torques of the named halves (intervals, halves): the inverse of :meth:`RunResult.half_torques`.
+    The columns of the units named in ``skip`` (a muscle run's muscles) are left out."""
     tau_halves = np.asarray(tau_halves, dtype=float).reshape(-1, len(halves))
     plus, minus = np.zeros((tau_halves.shape[0], len(run_joints))), np.zeros((tau_halves.shape[0], len(run_joints)))
     for k, name in enumerate(halves):
+        if name in skip:
+            continue
         joint, side = half_joint(name)
         if joint not in run_joints:
             raise ResultFileError(f"actuator half {name!r} drives no joint of {list(run_joints)}")
@@ -394,6 +429,7 @@ def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None)
         "intervals_per_cycle": ocp.task.intervals_per_cycle,
         "dt": ocp.task.dt,
         "substeps": ocp.transcription.substeps,
+        **ocp.actuators.run_record_attributes(),
     }
     # parameters shared by every half (e.g. S of a study with one fatigue model), by name
     halves = ocp.actuators.halves
@@ -418,8 +454,9 @@ def to_run_result(
     study: str = "",
 ) -> RunResult:
     """Assemble a :class:`RunResult` from node states (nodes, nx) and controls (intervals, nu)."""
-    L = ocp.layout
+    L, A = ocp.layout, ocp.actuators
     fatigued = L.fatigued(x)
+    record = A.run_record(x[:-1, L.q], x[:-1, L.v], u, x[:-1, L.m])
     return RunResult(
         name=name,
         attrs=attrs,
@@ -440,6 +477,9 @@ def to_run_result(
         urdf=Path(ocp.model.urdf_path).read_text(),
         study=study,
         fatigued=fatigued,
+        extras=record.extras,
+        unit_controls=record.unit_controls,
+        muscles=record.muscles,
     )
 
 

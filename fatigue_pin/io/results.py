@@ -12,6 +12,11 @@ Layout (``docs/results.md``)::
                                            joint), and on q joint_kinds (revolute, prismatic)
         tau_halves   (intervals, halves)   N m or N, every actuator half's (none for a passive joint),
                                            attributes actuators, units (layouts 1-2: tau_plus, tau_minus)
+        unit_controls (intervals, units)   a muscle run's, instead of tau_halves: every unit's control
+                                           (a muscle's activation, 1; a residual half's torque, N m);
+                                           group attributes actuation = "muscles", muscle_names (JSON),
+                                           muscles (the muscle file's text); extras/muscle_force,
+                                           extras/joint_torque
         <state>      (nodes, halves)       1, one dataset per fatigue state the models declare
                                            (Xia: ma, mr, mf; group attribute fatigue_states lists
                                            them; NaN in the columns of halves without the state)
@@ -51,7 +56,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from fatigue_pin.core.errors import FatiguePinError, ModelError, ResultFileError
+from fatigue_pin.core.errors import FatiguePinError, ResultFileError
 from fatigue_pin.core.files import atomic_write, check_folder, check_output_dir, check_space, clone, locked, through_links
 from fatigue_pin.drivers.run import (
     FAILED_WINDOW_SUFFIX,
@@ -62,137 +67,15 @@ from fatigue_pin.drivers.run import (
     WINDOW_DTYPE,
     RunResult,
     check_run_name,
-    joint_columns,
     torque_limits_at_cycle_ends,
 )
+from fatigue_pin.io.run_group import LEGACY_FATIGUE_STATES, as_attr, attr_value, read_run_group, text_of, write_run_group
 
 __all__ = [
     "FAILED_WINDOW_SUFFIX", "RUN_ATTRIBUTES", "SEARCH_DTYPE", "WINDOW_DTYPE", "ResultFile", "ResultFileError", "RunResult",
     "check_output", "check_output_dir", "check_run_slot", "delete_run", "list_runs", "read_run", "read_search", "read_search_attrs", "torque_limits_at_cycle_ends",
     "write_run", "write_search",
 ]
-
-#: Fatigue states of files written before the layout named them (Xia's model).
-LEGACY_FATIGUE_STATES = ("ma", "mr", "mf")
-
-
-def _attr_value(value: Any) -> Any:
-    """An HDF5 attribute as Python reads it back: text as str, a numpy scalar as a Python one."""
-    value = value.decode() if isinstance(value, bytes) else value
-    return value.item() if isinstance(value, np.generic) else value
-
-
-def _as_attr(value: Any) -> Any:
-    if value is None:
-        return "none"
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
-def _write_run(group: h5py.Group, run: RunResult) -> None:
-    for key, value in run.attrs.items():
-        group.attrs[key] = _as_attr(value)
-    group.attrs["urdf"] = run.urdf
-    group.attrs["study"] = run.study
-    group.attrs["fatigue_states"] = list(run.fatigue)
-    units = {"t": "s", "q": "rad", "qdot": "rad/s", "tau_halves": "N m", "cycle_costs": "cost", "torque_limits": "N m", "cycle_wall_time_s": "s"}
-    arrays = {n: getattr(run, n) for n in units if n != "tau_halves"} | {"tau_halves": run.half_torques()} | dict(run.fatigue) | {"fatigued": run.fatigued}
-    units |= {name: "1" for name in run.fatigue} | {"fatigued": "1"}
-    for name, unit in units.items():
-        data = np.asarray(arrays[name], dtype=float)
-        ds = group.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
-        ds.attrs["unit"] = unit
-    joint_units = [run.joint_units(j) for j in range(len(run.joint_names))]
-    for name, unit_of in (("q", "position"), ("qdot", "velocity")):
-        group[name].attrs["joints"] = list(run.joint_names)
-        _column_units(group[name], [getattr(u, unit_of) for u in joint_units])
-    group["q"].attrs["joint_kinds"] = list(run.joint_kinds)
-    for name in (*run.fatigue, "fatigued", "torque_limits", "tau_halves"):
-        group[name].attrs["actuators"] = list(run.actuator_names)
-    for name in ("torque_limits", "tau_halves"):
-        _column_units(group[name], [run.half_units(h).effort for h in range(len(run.actuator_names))])
-    group["cycle_costs"].attrs["terms"] = list(run.cost_terms)
-    if run.windows is not None:
-        group.create_dataset("windows", data=np.asarray(run.windows, dtype=WINDOW_DTYPE))
-    if run.extras:
-        extras = group.create_group("extras")
-        for name, value in run.extras.items():
-            data = np.asarray(value)
-            extras.create_dataset(name, data=data, compression="gzip" if data.size > 1000 else None)
-
-
-def _column_units(ds: h5py.Dataset, units: list[str]) -> None:
-    """The per-column ``units`` attribute of ``ds`` (one per joint or half), and its ``unit``: the
-    columns' common unit, or ``mixed`` when they differ."""
-    ds.attrs["units"] = units
-    ds.attrs["unit"] = units[0] if len(set(units)) == 1 else "mixed"
-
-
-def _joint_kinds(group: h5py.Group, joints: tuple[str, ...]) -> tuple[str, ...]:
-    """The kind of every joint of a stored run: the ``joint_kinds`` attribute of ``q``; for runs
-    written before it, from the stored URDF (joints matched by name), else every joint revolute
-    (all the models of those versions' studies but a hand-made URDF were)."""
-    if "joint_kinds" in group["q"].attrs:
-        return _str_list(group["q"].attrs["joint_kinds"])
-    urdf = _text(group.attrs.get("urdf", ""))
-    if urdf.strip():
-        from fatigue_pin.robot.model import joint_kinds_of_urdf
-
-        try:
-            kinds = joint_kinds_of_urdf(urdf)
-        except ModelError:
-            kinds = {}
-        if all(j in kinds for j in joints):
-            return tuple(kinds[j] for j in joints)
-    return ("revolute",) * len(joints)
-
-
-def _str_list(values: Any) -> tuple[str, ...]:
-    return tuple(v.decode() if isinstance(v, bytes) else str(v) for v in values)
-
-
-def _read_run(group: h5py.Group, name: str) -> RunResult:
-    states = _str_list(group.attrs["fatigue_states"]) if "fatigue_states" in group.attrs else LEGACY_FATIGUE_STATES
-    torques = ("tau_halves",) if "tau_halves" in group else ("tau_plus", "tau_minus")  # layouts 1-2: per joint
-    missing = [k for k in ("t", "q", "qdot", *torques, *states, "cycle_costs", "torque_limits") if k not in group]
-    if missing:
-        raise ResultFileError(f"run {name!r} lacks datasets {missing}; is it an OCP run written by fatigue_pin?")
-    attrs = {k: _attr_value(v) for k, v in group.attrs.items() if k not in ("urdf", "study", "fatigue_states")}
-    joints, tau = _str_list(group["q"].attrs["joints"]), group.get("tau_halves")
-    tau_plus, tau_minus = ((group["tau_plus"][()], group["tau_minus"][()]) if tau is None
-                           else joint_columns(joints, _str_list(tau.attrs["actuators"]), tau[()]))
-    run = RunResult(
-        name=name,
-        attrs=attrs,
-        t=group["t"][()],
-        q=group["q"][()],
-        qdot=group["qdot"][()],
-        tau_plus=tau_plus,
-        tau_minus=tau_minus,
-        fatigue={s: group[s][()] for s in states},
-        cycle_costs=group["cycle_costs"][()],
-        torque_limits=group["torque_limits"][()],
-        joint_names=joints,
-        joint_kinds=_joint_kinds(group, joints),
-        actuator_names=_str_list(group[states[0]].attrs["actuators"]),
-        cost_terms=_str_list(group["cycle_costs"].attrs["terms"]),
-        cycle_wall_time_s=group["cycle_wall_time_s"][()] if "cycle_wall_time_s" in group else np.zeros(0),
-        windows=group["windows"][()] if "windows" in group else None,
-        urdf=str(group.attrs.get("urdf", "")),
-        study=_text(group.attrs.get("study", "")),
-        fatigued=group["fatigued"][()] if "fatigued" in group else group["mf"][()],  # before "fatigued": Xia's mf
-        extras={k: v[()] for k, v in group["extras"].items()} if "extras" in group else {},
-    )
-    run.check_shapes()
-    return run
-
-
-def _text(value: Any) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
-
 
 LAYOUT = 3
 #: The ``format`` attribute of files this version writes.
@@ -210,7 +93,7 @@ def _layout_of(h5: h5py.File, path: Path) -> int | None:
     refuses a newer layout or a foreign format."""
     if "format" not in h5.attrs:
         return None
-    fmt = _text(h5.attrs["format"])
+    fmt = text_of(h5.attrs["format"])
     number = fmt[len(_FORMAT_PREFIX):] if fmt.startswith(_FORMAT_PREFIX) else ""
     if not number.isdigit():
         raise ResultFileError(f"{str(path)!r} has format {fmt!r}; expected a fatigue_pin result file ({FORMAT!r})")
@@ -371,7 +254,7 @@ def write_run(path: str | Path, run: RunResult) -> Path:
     def fill(h5: h5py.File) -> None:
         if _check_slot(h5, run.name, path):  # on the copy: the file is unchanged if this raises
             del h5[run.name]
-        _write_run(h5.create_group(run.name), run)
+        write_run_group(h5.create_group(run.name), run)
 
     arrays = [run.t, run.q, run.qdot, run.half_torques(), run.cycle_costs, run.torque_limits, *run.fatigue.values(),
               *run.extras.values()]
@@ -418,7 +301,7 @@ def write_search(path: str | Path, name: str, rows: list[dict[str, Any]], attrs:
             del grp[name]
         ds = grp.create_dataset(name, data=table)
         for key, value in (attrs or {}).items():
-            ds.attrs[key] = _as_attr(value)
+            ds.attrs[key] = as_attr(value)
 
     _atomic_rewrite(Path(path), set(), fill)
 
@@ -534,7 +417,7 @@ def read_run(path: str | Path, name: str | None = None) -> RunResult:
             shown = runs if len(runs) <= 12 else runs[:12] + [f"... {len(runs) - 12} more"]
             raise ResultFileError(f"run {name!r} is not in {str(path)!r}; it holds {shown}")
         with _reading(f"run {name!r} in {str(path)!r}"):
-            return _read_run(h5[name], name)
+            return read_run_group(h5[name], name)
 
 
 def read_search(path: str | Path) -> dict[str, np.ndarray]:
@@ -552,7 +435,7 @@ def read_search_attrs(path: str | Path) -> dict[str, dict[str, Any]]:
     with _open(path) as h5, _reading(f"the search tables of {str(path)!r}"):
         if "search" not in h5:
             return {}
-        return {k: {a: _attr_value(v) for a, v in h5["search"][k].attrs.items()} for k in h5["search"]}
+        return {k: {a: attr_value(v) for a, v in h5["search"][k].attrs.items()} for k in h5["search"]}
 
 
 def config_json(obj: Any) -> str:

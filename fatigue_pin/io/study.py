@@ -513,10 +513,6 @@ def run_study(study: Study, out: str | Path | None = None, name: str | None = No
 
     check_run_slot(out, name) if out is not None else check_run_name(name)  # nothing but a run of that name in its place
     horizon = study.horizon_settings()
-    kind = study.actuation().kind
-    if kind != "torque":  # before any work
-        raise StudyError(f"actuators.kind = {kind!r}: the drivers do not store runs of muscle studies yet; expected "
-                         "kind = \"torque\", or a solve in Python (Study.problem() with Ocp, docs/muscles.md)")
     job = _Job(study, study.problem(), horizon, study.transcription(), study.solver(cache_dir),
                ResultFile(out) if out is not None else None, name, resume, as_reporter(progress))
     defaults = study.solver_defaults()  # the study is valid: say which settings IPOPT would not have chosen

@@ -73,7 +73,7 @@ def read_muscles(text: str, source: str = "") -> MuscleSet:
             raise ParameterError(f"{at}: points = {points!r}: expected a list of {{ frame = ..., location = [x, y, z] }}")
         fields["points"] = tuple(_with_source(lambda p=p: PathPoint(**_fields(PathPoint, p, f"{at}.points")), where) for p in points)
         muscles.append(_with_source(lambda: Muscle(**fields), where))
-    return MuscleSet(tuple(muscles), tuple(wraps), source)
+    return MuscleSet(tuple(muscles), tuple(wraps), source, text)
 
 
 def _with_source(build, where: str):

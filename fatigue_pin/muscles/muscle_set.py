@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.muscles.muscle import Muscle
@@ -20,11 +20,14 @@ class MuscleSet:
         muscles: at least one, names unique.
         wraps: the cylinders, names unique; every name a muscle lists is one of them.
         source: where the set was read from (for messages), or ``""``.
+        text: the muscle file's text it was read from (runs store it, so that verify rebuilds
+            the muscles a run was solved with), or ``""`` (built in Python).
     """
 
     muscles: tuple[Muscle, ...]
     wraps: tuple[CylinderWrap, ...] = ()
     source: str = ""
+    text: str = field(default="", repr=False, compare=False)
 
     def __post_init__(self) -> None:
         muscles, wraps = tuple(self.muscles), tuple(self.wraps)

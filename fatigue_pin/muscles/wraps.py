@@ -115,32 +115,44 @@ class WrapUse:
             raise ParameterError(f"wrap {self.name!r} turn = {shown(self.turn)}: expected one of {list(TURNS)}")
 
 
+class _NUMPY:
+    """The operations of :func:`wrapped_length` on numpy numbers (verify evaluates paths on numbers)."""
+
+    fmax, sqrt, atan2, floor, acos = np.fmax, np.sqrt, np.arctan2, np.floor, np.arccos
+    logic_and = np.logical_and
+
+    @staticmethod
+    def if_else(c, a, b):
+        return float(np.where(c, a, b))
+
+
 def wrapped_length(P: ca.SX, S: ca.SX, radius: float, turn: str = "either") -> ca.SX:
     """Length (m) of the shortest path from ``P`` to ``S`` (each (3,), in the cylinder's frame, axis
     z) that does not enter the cylinder of ``radius``, going round it as ``turn`` says (see the
-    module docstring). CasADi SX, MX or DM in, the same kind out."""
+    module docstring). CasADi SX, MX or DM in, the same kind out; numpy arrays in, a float out."""
+    x = ca if isinstance(P, (ca.SX, ca.MX, ca.DM)) or isinstance(S, (ca.SX, ca.MX, ca.DM)) else _NUMPY
     r = float(radius)
     px, py, pz, sx, sy, sz = P[0], P[1], P[2], S[0], S[1], S[2]
     dx, dy = sx - px, sy - py
     d2 = dx * dx + dy * dy
     cross = px * sy - py * sx
-    t = -(px * dx + py * dy) / ca.fmax(d2, 1e-30)  # where the closest point of the line is
+    t = -(px * dx + py * dy) / x.fmax(d2, 1e-30)  # where the closest point of the line is
     dp2, ds2 = px * px + py * py, sx * sx + sy * sy
     if turn == "either":
-        sigma = ca.if_else(cross >= 0, 1, -1)  # the side the segment passes (either way through the axis)
+        sigma = x.if_else(cross >= 0, 1, -1)  # the side the segment passes (either way through the axis)
         near = cross * cross < r * r * d2
     else:
         sigma = 1 if turn == "positive" else -1
-        near = sigma * cross < r * ca.sqrt(d2)  # on the other side, or closer than r on this one
-    wraps = ca.logic_and(ca.logic_and(t > 0, t < 1), ca.logic_and(near, ca.logic_and(dp2 > r * r, ds2 > r * r)))
+        near = sigma * cross < r * x.sqrt(d2)  # on the other side, or closer than r on this one
+    wraps = x.logic_and(x.logic_and(t > 0, t < 1), x.logic_and(near, x.logic_and(dp2 > r * r, ds2 > r * r)))
     # the wrapped length, with guarded arguments (its branch is evaluated either way)
-    dp, ds = ca.sqrt(ca.fmax(dp2, r * r * (1 + 1e-12))), ca.sqrt(ca.fmax(ds2, r * r * (1 + 1e-12)))
-    tangents = ca.sqrt(dp * dp - r * r) + ca.sqrt(ds * ds - r * r)
-    swept = sigma * (ca.atan2(sy, sx) - ca.atan2(py, px))
-    swept = swept - 2 * math.pi * ca.floor(swept / (2 * math.pi))  # in [0, 2 pi)
-    arc = swept - ca.acos(r / dp) - ca.acos(r / ds)
+    dp, ds = x.sqrt(x.fmax(dp2, r * r * (1 + 1e-12))), x.sqrt(x.fmax(ds2, r * r * (1 + 1e-12)))
+    tangents = x.sqrt(dp * dp - r * r) + x.sqrt(ds * ds - r * r)
+    swept = sigma * (x.atan2(sy, sx) - x.atan2(py, px))
+    swept = swept - 2 * math.pi * x.floor(swept / (2 * math.pi))  # in [0, 2 pi)
+    arc = swept - x.acos(r / dp) - x.acos(r / ds)
     plane = tangents + r * arc
     dz = sz - pz
-    wrapped = ca.sqrt(plane * plane + dz * dz)
-    straight = ca.sqrt(d2 + dz * dz)
-    return ca.if_else(wraps, wrapped, straight)
+    wrapped = x.sqrt(plane * plane + dz * dz)
+    straight = x.sqrt(d2 + dz * dz)
+    return x.if_else(wraps, wrapped, straight)

@@ -15,6 +15,7 @@ signed torque actuators, "unit" and "half" are the same: the names below keep ``
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, field
 from typing import Union
 
 import casadi as ca
@@ -43,6 +44,22 @@ def column(x: Expr, n: int, what: str) -> Expr:
     return ca.DM(a)
 
 
+@dataclass(frozen=True)
+class RunRecord:
+    """What a kind adds to the record of a run (:func:`fatigue_pin.drivers.run.to_run_result`).
+
+    Attributes:
+        unit_controls: the control of every unit, (intervals, units), or None where the run's
+            ``tau_plus`` and ``tau_minus`` are the units' controls (torque halves).
+        muscles: the muscle file's text, or "".
+        extras: further arrays by name (:attr:`RunResult.extras`).
+    """
+
+    unit_controls: np.ndarray | None = None
+    muscles: str = ""
+    extras: dict = field(default_factory=dict)
+
+
 class ActuationLayer:
     """The units of an actuation kind, each with its fatigue model (module docstring).
 
@@ -58,6 +75,8 @@ class ActuationLayer:
 
     #: whether the units are a plus and a minus half per joint (per-joint cost terms select them)
     units_per_joint = True
+    #: the actuator kind, one of :data:`~fatigue_pin.ocp.actuation.ACTUATOR_KINDS` (run records name it)
+    kind = "torque"
 
     def _set_units(self, units: tuple, joint_names: tuple[str, ...], coupling: str, words: tuple[str, str]) -> None:
         """Check the coupling against the units' fatigue models and keep the three: ``words`` are
@@ -81,6 +100,17 @@ class ActuationLayer:
     def target_loads(self, u: Expr) -> Expr:
         """Target loads (dimensionless) of every unit, (n_units, K), from controls (nu, K)."""
         raise NotImplementedError
+
+    def run_record(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray, m: np.ndarray) -> RunRecord:
+        """What a run of this kind stores beside its states and ``tau_plus``/``tau_minus``, from
+        the state at the start of every interval (q, qdot (N, nv), m (N, n_states)) and its
+        controls u (N, nu): nothing for torque halves."""
+        return RunRecord()
+
+    def run_record_attributes(self) -> dict[str, object]:
+        """Run attributes of this kind: none for torque halves (a run without ``actuation`` is
+        one of torque halves); ``actuation`` and the kind's own for the others."""
+        return {}
 
     def control_target_loads(self, u: Expr) -> Expr:
         """:meth:`target_loads` (the name the interval functions use)."""

@@ -23,6 +23,7 @@ as units (states, target loads ``tau / limit``), and their torque adds to the mu
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Union
@@ -34,7 +35,7 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.muscles.muscle import Muscle
 from fatigue_pin.muscles.muscle_set import MuscleSet
-from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr
+from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr, RunRecord
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
 
 __all__ = ["MuscleUnit", "MuscleActuators"]
@@ -69,6 +70,7 @@ class MuscleActuators(ActuationLayer):
     """
 
     units_per_joint = False
+    kind = "muscles"
     #: the muscles' torque depends on q and qdot (moment arms, lengths, speeds)
     torque_follows_state = True
 
@@ -118,6 +120,55 @@ class MuscleActuators(ActuationLayer):
             return lo, hi
         rlo, rhi = self.residuals.control_bounds()
         return np.concatenate([lo, rlo]), np.concatenate([hi, rhi])
+
+    @property
+    def signed_limits(self) -> np.ndarray:
+        """Each unit's control at TL = 1, (n_units,): 1 for a muscle (its activation), the
+        residual halves' signed torque limits (N m)."""
+        ones = np.ones(self.n_muscles)
+        return ones if self.residuals is None else np.concatenate([ones, self.residuals.signed_limits])
+
+    def half_torques(self, u: np.ndarray) -> np.ndarray:
+        """The controls (..., nu) as the controls of the units (..., n_units), in unit order:
+        the activations, then the residual halves' torques (N m) in half order."""
+        u = np.asarray(u, dtype=float)
+        nm = self.n_muscles
+        if self.residuals is None:
+            return u[..., :nm]
+        return np.concatenate([u[..., :nm], self.residuals.half_torques(u[..., nm:])], axis=-1)
+
+    def controls(self, unit_controls: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`half_torques`: controls (..., nu) from the units' (..., n_units)."""
+        c = np.asarray(unit_controls, dtype=float)
+        nm = self.n_muscles
+        if self.residuals is None:
+            return c[..., :nm].copy()
+        return np.concatenate([c[..., :nm], self.residuals.controls(c[..., nm:])], axis=-1)
+
+    def per_joint(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residual torques of the controls (..., nu) as ``(tau_plus, tau_minus)``, each
+        (..., nv) (N m), zeros without residual torques."""
+        u = np.asarray(u, dtype=float)
+        if self.residuals is None:
+            zero = np.zeros(u.shape[:-1] + (self.nv,))
+            return zero, zero.copy()
+        return self.residuals.per_joint(u[..., self.n_muscles:])
+
+    def run_record(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray, m: np.ndarray) -> RunRecord:
+        """The units' controls (activations, residual torques), the muscle file's text, and at the
+        start of every interval each muscle's force (N) and the joint torque (N m), (N, nm) and
+        (N, nv) (``muscle_force``, ``joint_torque``)."""
+        q, qdot, u = (np.asarray(a, dtype=float) for a in (q, qdot, u))
+        N = u.shape[0]
+        a = np.asarray(self.effective_activation(u, np.asarray(m, dtype=float)), dtype=float).reshape(N, self.n_muscles)
+        forces = np.array(self.forces.map(N)(q.T, qdot.T, a.T)).T.reshape(N, self.n_muscles) if N else np.zeros((0, self.n_muscles))
+        tau = self.joint_torque(u, m, np.hstack([q, qdot])) if N else np.zeros((0, self.nv))
+        return RunRecord(self.half_torques(u), self.muscles.text,
+                         {"muscle_force": forces, "joint_torque": np.asarray(tau, dtype=float).reshape(N, self.nv)})
+
+    def run_record_attributes(self) -> dict[str, object]:
+        """``actuation = "muscles"`` and ``muscle_names`` (JSON): the first units of the run."""
+        return {"actuation": self.kind, "muscle_names": json.dumps(list(self.muscles.names))}
 
     def control_scales(self, magnitude: np.ndarray) -> np.ndarray:
         """Scales of the controls, (nu,): 1 for the activations (of order 1), the residual

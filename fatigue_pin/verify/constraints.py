@@ -28,7 +28,7 @@ def finite_check(s: Stored) -> VerifyCheck:
         ("node", s.Y, [f"q {j}" for j in joints] + [f"qdot {j}" for j in joints]),
         ("node", s.M, s.state_labels),
         ("node", np.asarray(s.run.fatigued, dtype=float), [f"fatigued {h.name}" for h in s.halves]),
-        ("interval", s.run.half_torques(), [f"tau_{side} {joint}" for joint, side in map(half_joint, s.run.actuator_names)]),
+        ("interval", s.run.half_torques(), [_control_label(s, name) for name in s.run.actuator_names]),
     ]
     count, where = 0, ""
     for what, values, labels in parts:
@@ -67,9 +67,18 @@ def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float
     return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value
 
 
+def _control_label(s: Stored, unit: str) -> str:
+    """``tau_plus elbow`` for a half, ``activation BRA`` for a muscle."""
+    if unit in s.run.muscle_names:
+        return f"activation {unit}"
+    joint, side = half_joint(unit)
+    return f"tau_{side} {joint}"
+
+
 def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], float]:
     """q within the URDF limits, |qdot| within the velocity limits, each torque half within
-    [0, limit] (plus) or [limit, 0] (minus), fatigue states in [0, 1]."""
+    [0, limit] (plus) or [limit, 0] (minus), each muscle's activation in [0, 1] (its limit is 1),
+    fatigue states in [0, 1]."""
     run, model, joints = s.run, s.robot.pin_model, s.joints
     q_lo, q_hi = np.array(model.lowerPositionLimit, dtype=float), np.array(model.upperPositionLimit, dtype=float)
     v_max = np.array(model.velocityLimit, dtype=float)

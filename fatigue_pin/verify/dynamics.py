@@ -51,15 +51,24 @@ class Dynamics:
         self.nq = self.model.nq
         self.halves = stored.halves
         self.offsets = stored.offsets
+        self.stored = stored
 
-    def rigid(self, tau: np.ndarray) -> Rhs:
-        """d(q, qdot)/dt with the joint torques ``tau`` (nv,) held."""
+    def rigid(self, k: int) -> Rhs:
+        """d(q, qdot)/dt on interval ``k``: its stored joint torques held, plus for a muscle run
+        the muscles' torque at its activations and the current (q, qdot)."""
         nq, pin, model, data = self.nq, self.pin, self.model, self.data
+        s = self.stored
+        tau = s.tau[k]
+        if s.muscles is None:
+            def f(_t: float, y: np.ndarray) -> np.ndarray:
+                return np.concatenate([y[nq:], pin.aba(model, data, y[:nq], y[nq:], tau)])
+            return f
+        muscles, a = s.muscles, s.activations[k]
 
-        def f(_t: float, y: np.ndarray) -> np.ndarray:
-            return np.concatenate([y[nq:], pin.aba(model, data, y[:nq], y[nq:], tau)])
+        def g(_t: float, y: np.ndarray) -> np.ndarray:
+            return np.concatenate([y[nq:], pin.aba(model, data, y[:nq], y[nq:], tau + muscles.torque(y[:nq], y[nq:], a))])
 
-        return f
+        return g
 
     def fatigue(self, TL: np.ndarray) -> Rhs:
         """dm/dt of every half's states with the target loads ``TL`` (halves,) held."""
@@ -120,6 +129,8 @@ def finite_intervals(s: Stored) -> np.ndarray:
     """Intervals whose two nodes and control are finite, (N,) bool."""
     node = np.all(np.isfinite(s.Y), axis=1) & np.all(np.isfinite(s.M), axis=1)
     ctrl = np.all(np.isfinite(s.tau), axis=1) & np.all(np.isfinite(s.TL), axis=1)
+    if s.activations is not None:
+        ctrl &= np.all(np.isfinite(s.activations), axis=1)
     return node[:-1] & node[1:] & ctrl
 
 
@@ -145,7 +156,7 @@ def _interval_gaps(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, k: int, 
     """Fill row ``k`` of the gaps ``gy`` (q, qdot), ``gm`` (fatigue) and, with substeps, of the RK4
     residual ``res`` and truncation ``trunc``; a failed integration is an infinite gap, named in ``failed``."""
     nm = s.M.shape[1]
-    fy, fm = dyn.rigid(s.tau[k]), dyn.fatigue(s.TL[k])
+    fy, fm = dyn.rigid(k), dyn.fatigue(s.TL[k])
     try:
         ey = integrate(fy, s.Y[k], s.dt, ref)
         em = integrate(fm, s.M[k], s.dt, ref) if nm else s.M[k]
@@ -235,7 +246,7 @@ def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report:
     for k in range(N):
         if diverged is None:
             try:
-                ys[k + 1] = integrate(dyn.rigid(s.tau[k]), ys[k], s.dt, ref)
+                ys[k + 1] = integrate(dyn.rigid(k), ys[k], s.dt, ref)
             except IntegrationFailed:
                 diverged = k
         if M.shape[1] and stopped is None:

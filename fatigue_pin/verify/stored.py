@@ -72,6 +72,9 @@ class Stored:
         half's states in its model's order; tau: joint torques tau_plus + tau_minus, (N, nv);
         TL: target loads, (N, halves) (:meth:`RunResult.target_loads`).
         notes: what was found while rebuilding (defaults taken, differences).
+        muscles: a muscle run's muscles on its model, evaluated on numbers
+            (:class:`~fatigue_pin.verify.muscle_torque.NumericMuscles`), or None; their torque at
+            the activations ``activations`` (N, nm) adds to ``tau`` (then the residual torques).
     """
 
     run: RunResult
@@ -88,6 +91,8 @@ class Stored:
     tau: np.ndarray = field(repr=False)
     TL: np.ndarray = field(repr=False)
     notes: list[str] = field(default_factory=list)
+    muscles: Any = None
+    activations: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def N(self) -> int:
@@ -140,9 +145,37 @@ def rebuild(run: RunResult) -> Stored:
     task = _task(run, study, n, notes)
     cols = [run.fatigue[s][:, h] for h, half in enumerate(halves) for s in half.states]
     M = np.column_stack(cols).astype(float) if cols else np.zeros((N + 1, 0))
+    muscles, activations = _muscles(run, robot)
     return Stored(run=run, robot=robot, task=task, halves=halves, limits=limits, horizon=horizon, dt=dt, n=n,
                   substeps=substeps, Y=np.hstack([run.q, run.qdot]).astype(float), M=M,
-                  tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=run.target_loads(), notes=notes)
+                  tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=run.target_loads(), notes=notes,
+                  muscles=muscles, activations=activations)
+
+
+def _muscles(run: RunResult, robot) -> tuple[Any, np.ndarray | None]:
+    """A muscle run's muscles, read from the muscle file text it stores, on the rebuilt model, and
+    their activations (N, nm); (None, None) for a run of torque halves."""
+    if run.actuation == "torque":
+        return None, None
+    if run.actuation != "muscles":
+        raise ResultFileError(f"run {run.name!r}: actuation = {run.actuation!r}; verify checks runs of torque halves and muscles")
+    from fatigue_pin.muscles.files import read_muscles
+    from fatigue_pin.verify.muscle_torque import NumericMuscles
+
+    if not run.muscles:
+        raise ResultFileError(f"run {run.name!r} is a muscle run without its muscle file's text (attribute muscles); "
+                              "cannot rebuild its muscles")
+    try:
+        muscles = read_muscles(run.muscles, f"the muscle file stored with run {run.name!r}")
+    except FatiguePinError as exc:
+        raise ResultFileError(f"run {run.name!r}: its stored muscles do not load: {exc}") from None
+    if muscles.names != run.muscle_names or run.actuator_names[: len(muscles.names)] != muscles.names:
+        raise ResultFileError(f"run {run.name!r}: its stored muscles {list(muscles.names)} are not its first units "
+                              f"{list(run.actuator_names[: len(muscles.names)])}")
+    missing = sorted({p.frame for m in muscles.muscles for p in m.points} - set(robot.pin_model.names) - {f.name for f in robot.pin_model.frames})
+    if missing:
+        raise ResultFileError(f"run {run.name!r}: its muscles' points are on links {missing}, which its model does not have")
+    return NumericMuscles(robot.pin_model, muscles), run.half_torques()[:, : len(muscles.names)]
 
 
 def _intervals(run: RunResult) -> int:
@@ -242,13 +275,23 @@ def _robot(run: RunResult, study, notes: list[str]):
 
 
 def _limits(run: RunResult, robot, notes: list[str]) -> np.ndarray:
-    """Signed torque limits (plus, minus per joint), as stored (:attr:`RunResult.signed_limits`)."""
+    """Signed torque limits (plus, minus per joint), as stored (:attr:`RunResult.signed_limits`);
+    for a muscle run, 1 for each muscle (its activation at TL = 1), then its residual halves'."""
     try:
         signed = run.signed_limits
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ResultFileError):
             raise
         raise ResultFileError(f"run {run.name!r}: attribute tau_limits = {shown(run.attrs.get('tau_limits'))} is not a list of numbers") from None
+    nm = len(run.muscle_names)
+    if nm:
+        if not np.array_equal(signed[:nm], np.ones(nm)):
+            raise ResultFileError(f"run {run.name!r}: limits {signed[:nm].tolist()} of its muscles; expected 1 (activation) for each")
+        if signed.size == nm:
+            return signed
+        halves = _limits(dataclasses.replace(run, actuator_names=run.actuator_names[nm:], attrs={**run.attrs, "tau_limits": signed[nm:],
+                                                                                             "muscle_names": ""}), robot, notes)
+        return np.concatenate([signed[:nm], halves])
     if not np.all(np.isfinite(signed)) or np.any(signed[0::2] <= 0) or np.any(signed[1::2] >= 0):
         raise ResultFileError(f"run {run.name!r}: torque limits {signed.tolist()} N m; expected finite limits, > 0 for "
                               "each plus half and < 0 for each minus half")

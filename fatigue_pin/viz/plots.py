@@ -133,7 +133,7 @@ def plot_fatigue_states(run: RunResult, out_dir: Path) -> list[Path]:
             ax.axvline(run.t[run.cycle_slice(c).start], color="w", lw=0.4, alpha=0.6)
         ax.set_ylim(0.0, 1.05)
         ax.set_xlim(run.t[0], run.t[-1])
-        ax.set_title(f"{name} (limit {run.signed_limits[h]:+g} {run.half_units(h).effort})", fontsize=10)
+        ax.set_title(f"{name} (limit {run.signed_limits[h]:+g} {run.unit_effort(h)})", fontsize=10)
         ax.set_ylabel("fraction (-)")
     for ax in axes[len(halves):]:
         ax.set_visible(False)
@@ -153,12 +153,15 @@ def plot_torque_limits(run: RunResult, out_dir: Path) -> list[Path]:
     fig = _figure(figsize=(9, 5))
     axes = fig.subplots(1, 2, sharex=True)
     for h, name in enumerate(run.actuator_names):
+        if name in run.muscle_names:  # a muscle's available activation: plot_muscles
+            continue
         values = np.concatenate([[lim[h] * (1.0 - run.fatigued[0, h])], run.torque_limits[:, h]])
         ax = axes[1] if lim[h] < 0 else axes[0]
         ratio = values[0] / values[-1] if values[-1] != 0 else np.inf
         unit = run.half_units(h).effort
         ax.plot(cycles, values, "o-", ms=3, label=f"{name}: {values[0]:.3g} -> {values[-1]:.3g} {unit} ({ratio:.3g}x lower)")
-    unit = _units_word([run.half_units(h).effort for h in range(len(run.actuator_names))])
+    unit = _units_word([run.unit_effort(h) for h in range(len(run.actuator_names)) if run.actuator_names[h] not in run.muscle_names]
+                       or ["N m"])
     for ax, kind in zip(axes, ("flexion halves (tau_plus)", "extension halves (tau_minus)")):
         ax.set_title(kind, fontsize=10)
         ax.set_xlabel("end of cycle (0: start)")
@@ -233,12 +236,49 @@ def plot_solve_time(run: RunResult, out_dir: Path) -> list[Path]:
     return _save(fig, out_dir, f"{run_prefix(run)}_solve_time")
 
 
+def plot_muscles(run: RunResult, out_dir: Path) -> list[Path]:
+    """A muscle run's muscles: each muscle's fatigued fraction over the run (cycle ends marked),
+    its force at the start of every interval (N), and the joint torques the muscles and the
+    residual torques give (N m)."""
+    names = run.muscle_names
+    idx = [run.actuator_names.index(m) for m in names]
+    fig = _figure(figsize=(12, 8))
+    ax_mf, ax_f, ax_tau = fig.subplots(3, 1, sharex=True)
+    colors = matplotlib.colormaps["tab10"]
+    ends = [run.cycle_slice(c).stop - 1 for c in range(run.n_cycles)]
+    for i, (name, h) in enumerate(zip(names, idx)):
+        ax_mf.plot(run.t, run.fatigued[:, h], color=colors(i % 10), lw=1.2, label=f"{name}: {run.fatigued[-1, h]:.3f} at the end")
+        ax_mf.plot(run.t[ends], run.fatigued[ends, h], "o", ms=3, color=colors(i % 10))
+        if "muscle_force" in run.extras:
+            ax_f.step(run.t[:-1], run.extras["muscle_force"][:, i], where="post", color=colors(i % 10), lw=1, label=name)
+    residual = run.tau_plus + run.tau_minus
+    for j, joint in enumerate(run.joint_names):
+        if "joint_torque" in run.extras:
+            ax_tau.step(run.t[:-1], run.extras["joint_torque"][:, j] - residual[:, j], where="post", lw=1.2,
+                        color=colors(j % 10), label=f"{joint}: muscles")
+        ax_tau.step(run.t[:-1], residual[:, j], where="post", lw=1, ls="--", color=colors(j % 10), label=f"{joint}: residual")
+    ax_mf.set_ylabel("fatigued fraction (-)")
+    ax_f.set_ylabel("tendon force (N)")
+    ax_tau.set_ylabel("joint torque (N m)")
+    ax_tau.set_xlabel("time (s)")
+    for ax in (ax_mf, ax_f, ax_tau):
+        ax.grid(alpha=0.3)
+        if ax.lines:
+            ax.legend(fontsize=7, ncol=3)
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_muscles")
+
+
 def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
-    """Every per-run figure of ``run`` (ResultFileError for a run without a cycle)."""
+    """Every per-run figure of ``run`` (ResultFileError for a run without a cycle); a muscle run
+    adds :func:`plot_muscles`."""
     run.require_cycles("plot")
     paths: list[Path] = []
     for plot in (plot_joint_angles, plot_fatigue_states, plot_torque_limits, plot_cycle_costs, plot_solve_time):
         paths += plot(run, out_dir)
+    if run.muscle_names:
+        paths += plot_muscles(run, out_dir)
     return paths
 
 

@@ -50,7 +50,7 @@ def test_crash_during_write_leaves_the_old_file(tmp_path, monkeypatch):
         group.create_dataset("t", data=[1.0])
         raise RuntimeError("killed")
 
-    monkeypatch.setattr(results, "_write_run", boom)
+    monkeypatch.setattr(results, "write_run_group", boom)
     with pytest.raises(RuntimeError):
         write_run(path, make_run("full/other"))
     monkeypatch.undo()

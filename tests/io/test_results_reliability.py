@@ -130,7 +130,7 @@ def test_a_damaged_run_is_one_error(tmp_path, monkeypatch):
     def broken(group, name):
         raise OSError("Can't read data (wrong B-tree signature)")
 
-    monkeypatch.setattr(results, "_read_run", broken)
+    monkeypatch.setattr(results, "read_run_group", broken)
     with pytest.raises(ResultFileError, match=r"run 'full/a' in '.*a.h5' cannot be read \(OSError: Can't read data"):
         read_run(path, "full/a")
 
@@ -145,7 +145,7 @@ def test_a_write_failing_at_any_step_leaves_the_file_unchanged(tmp_path, monkeyp
     def fail(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    target = {"copy": (files.shutil, "copyfile"), "h5": (results, "_write_run"), "fsync": (files, "fsync"),
+    target = {"copy": (files.shutil, "copyfile"), "h5": (results, "write_run_group"), "fsync": (files, "fsync"),
               "replace": (results.os, "replace")}[step]
     monkeypatch.setattr(*target, fail)
     with pytest.raises(ResultFileError, match=r"cannot write '.*a.h5': the disk is full \(no space left on device\); "

@@ -8,7 +8,7 @@ import pytest
 
 from conftest import small_curl
 from fatigue_pin.cli.main import main
-from fatigue_pin.io.study import Study, StudyError, run_study
+from fatigue_pin.io.study import Study, StudyError
 from fatigue_pin.muscles.geometry import MuscleGeometry
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
 from fatigue_pin.ocp.muscle_actuators import MuscleActuators
@@ -74,12 +74,11 @@ def test_muscle_keys_that_need_muscles_are_refused_on_torque_halves(arm26):
         small_curl("full").replace({"actuators.kind": "motors"})
 
 
-def test_runs_of_muscle_studies_are_refused_before_any_work(tmp_path, capsys):
-    """Until the drivers store muscle runs, running a muscle study says so in one line (exit 2)."""
-    with pytest.raises(StudyError, match="the drivers do not store runs of muscle studies yet"):
-        run_study(muscle_study())
-    path = tmp_path / "muscles.toml"
-    path.write_text(muscle_study().to_toml())
-    assert main(["run", str(path), "--out", str(tmp_path / "m.h5")]) == 2
+def test_a_closed_loop_of_muscles_is_refused_before_any_work(tmp_path, capsys):
+    """The closed loop's plant and estimator integrate torque halves: a muscle study says so in one line."""
+    path = tmp_path / "muscles_mpc.toml"
+    path.write_text(muscle_study(**{"horizon.kind": "sliding", "horizon.max_cycles": 3}).to_toml() + "\n[mpc]\n")
+    assert main(["mpc", str(path), "--out", str(tmp_path / "m.h5")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "actuators.kind = 'muscles'" in err[0] and not (tmp_path / "m.h5").exists()
+    assert len(err) == 1 and "actuators.kind = 'muscles': the closed loop drives torque halves only" in err[0]
+    assert not (tmp_path / "m.h5").exists()

@@ -151,3 +151,25 @@ def test_a_prismatic_joint_is_plotted_in_metres(monkeypatch, tmp_path: Path) -> 
     comparison = figures[-1].axes[1]
     assert comparison.get_ylabel() == "position (m)"
     np.testing.assert_array_equal(comparison.get_lines()[0].get_ydata(), run.q[run.cycle_slice(2), 0])
+
+
+def test_a_muscle_run_gets_its_muscles_figure(two_muscle_run, monkeypatch, tmp_path: Path) -> None:
+    """Each muscle's fatigued fraction, its force and the joint torques it gives are what the run stores."""
+    _, _, run = two_muscle_run
+    drawn = {}
+    original = plots._save
+
+    def keep(fig, out_dir, stem):
+        if stem.endswith("_muscles"):
+            drawn["lines"] = {ax.get_ylabel(): [ln.get_ydata() for ln in ax.lines] for ax in fig.axes}
+        return original(fig, out_dir, stem)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    paths = plots.plot_run(run, tmp_path)
+    assert any(p.name.endswith("_muscles.png") for p in paths)
+    lines = drawn["lines"]
+    assert np.array_equal(lines["fatigued fraction (-)"][0], run.fatigued[:, 0])  # TRIlat over the run
+    assert np.array_equal(lines["tendon force (N)"][1][:-1], run.extras["muscle_force"][:, 1][: len(lines["tendon force (N)"][1]) - 1])
+    # the muscles' share of the elbow torque, and the residual at the elbow
+    elbow_muscles = run.extras["joint_torque"][:, 1] - (run.tau_plus + run.tau_minus)[:, 1]
+    assert np.allclose(lines["joint torque (N m)"][2], elbow_muscles)

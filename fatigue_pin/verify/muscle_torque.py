@@ -1,0 +1,92 @@
+"""The joint torque of a muscle run's muscles, computed for ``fatigue-pin verify`` apart from the
+transcription's CasADi expressions.
+
+* Geometry: numeric ``pinocchio.framesForwardKinematics`` places every path point (numpy); a
+  segment that goes round a wrap cylinder takes the analytic length of
+  :func:`~fatigue_pin.muscles.wraps.wrapped_length` evaluated on numbers (that formula is checked
+  against OpenSim 4.6, docs/muscles.md).
+* Moment arms and lengthening speeds: five-point central differences of the lengths in q (step
+  :data:`STEP` rad or m), not the transcription's algorithmic derivatives.
+* Forces: :meth:`~fatigue_pin.muscles.muscle.Muscle.force` on numpy numbers, the De Groote-Fregly
+  curves with Moco's constants (checked against their formulas at sample points).
+
+So a transcription whose muscle paths, moment arms or forces were wrong would show as gaps.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from fatigue_pin.muscles.muscle_set import MuscleSet
+from fatigue_pin.muscles.wraps import wrapped_length
+
+__all__ = ["STEP", "NumericMuscles"]
+
+#: Step of the moment arms' five-point central differences (rad or m): the truncation (h^4) and
+#: the round-off (eps L / h) of a path of about 0.3 m are both near 1e-13 m, so the adaptive
+#: reference integration at rtol 1e-10 does not see the differences' noise.
+STEP = 1e-4
+
+
+class NumericMuscles:
+    """The muscles of a set on a Pinocchio model, evaluated on numbers.
+
+    Args:
+        model: the numeric ``pinocchio.Model`` the run was solved on (nq == nv).
+        muscles: the muscle set stored with the run.
+    """
+
+    def __init__(self, model: Any, muscles: MuscleSet) -> None:
+        import pinocchio as pin
+
+        self.pin, self.model, self.data, self.muscles = pin, model, model.createData(), muscles
+        frames = {p.frame for m in muscles.muscles for p in m.points} | {w.frame for w in muscles.wraps}
+        self._frame_ids = {f: model.getFrameId(f) for f in frames}
+        self._wraps = {w.name: w for w in muscles.wraps}
+
+    def lengths(self, q: np.ndarray) -> np.ndarray:
+        """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,)."""
+        pin, model, data = self.pin, self.model, self.data
+        pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
+        placed = {f: (data.oMf[i].rotation.copy(), data.oMf[i].translation.copy()) for f, i in self._frame_ids.items()}
+        out = np.zeros(len(self.muscles.muscles))
+        for i, m in enumerate(self.muscles.muscles):
+            points = [placed[p.frame][0] @ np.asarray(p.location, dtype=float) + placed[p.frame][1] for p in m.points]
+            total = 0.0
+            for a, b in zip(points[:-1], points[1:]):
+                segment = float(np.linalg.norm(b - a))
+                for use in m.wraps:  # a segment goes round at most one cylinder: the longest path
+                    w = self._wraps[use.name]
+                    R, p = placed[w.frame]
+                    Rw, c = w.matrix(), np.asarray(w.translation, dtype=float)
+                    local = [Rw.T @ (R.T @ (x - p) - c) for x in (a, b)]
+                    length = float(wrapped_length(local[0], local[1], w.radius, use.turn))
+                    segment = length if use is m.wraps[0] else max(segment, length)
+                total += segment
+            out[i] = total
+        return out
+
+    def length_gradient(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The lengths (nm,) and dL/dq (nm, nq) by five-point central differences."""
+        q = np.asarray(q, dtype=float)
+        J = np.zeros((len(self.muscles.muscles), q.size))
+        for j in range(q.size):
+            e = np.zeros(q.size)
+            e[j] = STEP
+            J[:, j] = (8 * (self.lengths(q + e) - self.lengths(q - e)) - (self.lengths(q + 2 * e) - self.lengths(q - 2 * e))) / (12 * STEP)
+        return self.lengths(q), J
+
+    def forces(self, q: np.ndarray, qdot: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Tendon force of every muscle (N), (nm,), at activations ``a`` (nm,)."""
+        L, J = self.length_gradient(q)
+        Ldot = J @ np.asarray(qdot, dtype=float)
+        return np.array([m.force(float(a[i]), L[i], Ldot[i]) for i, m in enumerate(self.muscles.muscles)], dtype=float)
+
+    def torque(self, q: np.ndarray, qdot: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Joint torque ``r(q)^T F`` (nv,) (N m or N), with ``r = -dL/dq``."""
+        L, J = self.length_gradient(q)
+        Ldot = J @ np.asarray(qdot, dtype=float)
+        F = np.array([m.force(float(a[i]), L[i], Ldot[i]) for i, m in enumerate(self.muscles.muscles)], dtype=float)
+        return -J.T @ F

@@ -1,0 +1,45 @@
+"""verify on muscle runs: the muscles' torque on numbers (numeric Pinocchio, finite differences of
+the path lengths, the curves on numpy), apart from the transcription's CasADi expressions."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fatigue_pin.ocp.muscle_actuators import MuscleActuators
+from fatigue_pin.verify.muscle_torque import NumericMuscles
+from fatigue_pin.verify.verifier import verify_run
+from fatigue_pin.fatigue.models import XiaFatigue
+
+
+def test_numeric_muscles_equal_the_layers_expressions(arm26, arm26_muscles, arm26_geometry):
+    numeric = NumericMuscles(arm26.pin_model, arm26_muscles)
+    layer = MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, XiaFatigue(LD=10.0, LR=10.0, F=0.01, R=0.002))
+    rng = np.random.default_rng(3)
+    wrapped = 0
+    for _ in range(12):
+        q = np.radians([rng.uniform(0, 90), rng.uniform(0, 150)])
+        v, a = rng.uniform(-3, 3, 2), rng.uniform(0, 1, 6)
+        L = np.asarray(arm26_geometry.lengths(q)).ravel()
+        assert np.allclose(numeric.lengths(q), L, rtol=0, atol=1e-12)
+        r = np.asarray(arm26_geometry.moment_arms(q))
+        assert np.allclose(-numeric.length_gradient(q)[1], r, rtol=0, atol=1e-9)  # finite differences against AD
+        tau = np.asarray(layer.torque(q, v, a)).ravel()
+        assert np.allclose(numeric.torque(q, v, a), tau, rtol=1e-7, atol=1e-6)
+        wrapped += int(np.linalg.norm(L - numeric_unwrapped(arm26, arm26_muscles, q)) > 1e-6)
+    assert wrapped >= 3  # poses where the humeral cylinder shapes the triceps' or the brachialis' path
+
+
+def numeric_unwrapped(arm26, muscles, q):
+    return NumericMuscles(arm26.pin_model, muscles.without_wraps()).lengths(q)
+
+
+def test_verify_re_integrates_a_muscle_run_with_the_numeric_muscles(two_muscle_run):
+    _, _, run = two_muscle_run
+    report = verify_run(run)
+    checks = {c.name: c for c in report.checks}
+    # the transcription's RK4 written again with the numeric muscle torque reproduces the nodes
+    assert report.rk4_residual < 1e-6
+    assert checks["bound torques"].value <= 1e-6 and checks["task joint targets"].value <= 1e-4
+    # the small curl's grid (2 RK4 substeps of 0.05 s) is coarse for the muscles: named as such
+    assert report.gap_qdot > 1e-3 and any("too coarse for the gap tolerance" in n for n in report.notes)
+    assert abs(report.rk4_truncation - max(report.gap_q, report.gap_qdot)) <= 1e-6  # the gaps are the grid's RK4 error
