@@ -191,10 +191,11 @@ def two_muscle_file(folder) -> str:
 
 def muscle_curl(muscles: str = "arm26", **changes):
     """The small curl (one cycle) driven by ``muscles`` with +-50 N m residual torques that do not
-    tire; costs: fatigue, controls, the shoulder's posture (the torque rate is per joint)."""
+    tire; costs: fatigue, the activations, the residual torques, the shoulder's posture."""
     return small_curl("full").replace({
         "model.muscles": muscles, "actuators.kind": "muscles", "actuators.residuals": 50.0, "horizon.cycles": 1,
-        "costs": {"fatigue": 1e3, "torque": 1.0, "posture": {"weight": 1e5, "joints": ["shoulder"]}}, **changes})
+        "costs": {"fatigue": 1e3, "activation": 1.0, "residual": 1.0, "posture": {"weight": 1e5, "joints": ["shoulder"]}},
+        **changes})
 
 
 @pytest.fixture(scope="session")

@@ -101,6 +101,16 @@ class ActuationLayer:
         """Target loads (dimensionless) of every unit, (n_units, K), from controls (nu, K)."""
         raise NotImplementedError
 
+    def activation_rows(self) -> list[int]:
+        """Rows of the controls that are muscle activations (the ``activation`` cost term); none
+        for torque halves."""
+        return []
+
+    def residual_rows(self) -> list[int]:
+        """Rows of the controls that are residual torques beside muscles (the ``residual`` cost
+        term); none for torque halves (their torques are the actuators)."""
+        return []
+
     def run_record(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray, m: np.ndarray) -> RunRecord:
         """What a run of this kind stores beside its states and ``tau_plus``/``tau_minus``, from
         the state at the start of every interval (q, qdot (N, nv), m (N, n_states)) and its

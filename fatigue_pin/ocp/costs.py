@@ -17,6 +17,8 @@ Built-in terms (:data:`COST_KINDS`), each over the joints ``joints`` (default: e
     torque_rate  sum_j c_j sum_{h of j} (u_h,k - u_h,k-1)^2  (N^2 m^2 or N^2)
     fatigue      sum_j c_j sum_{h of j} m_fatigued,h^2       (1)
     torque       sum_j c_j sum_{h of j} u_h,k^2              (N^2 m^2 or N^2)
+    activation   sum_i a_i,k^2 over the muscles              (1; muscle actuators only)
+    residual     sum_h u_h,k^2 over the residual torques     (N^2 m^2; muscles with residual torques only)
     state        sum_i c_i (x_{s_i} - target_i)^2         states by name (StateLayout.state_names)
     frame        |p_frame(q) - position|^2                (m^2)
 
@@ -285,6 +287,18 @@ def torque(weight: float, name: str = "torque", joints: Sequence[str] | None = N
     return _halves_term("torque", weight, name, joints, joint_weights, lambda v: ca.sumsqr(v.u), lambda v: v.tau_halves)
 
 
+def activation(weight: float, name: str = "activation") -> CostTerm:
+    """``sum_i a_i^2``: every muscle's activation squared (dimensionless; the rows of
+    :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.activation_rows`)."""
+    return CostTerm(name, weight, lambda v: ca.sumsqr(v.u[v.actuators.activation_rows()]), {}, "activation")
+
+
+def residual(weight: float, name: str = "residual") -> CostTerm:
+    """``sum_h u_h^2``: every residual torque half squared (N^2 m^2; the rows of
+    :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.residual_rows`)."""
+    return CostTerm(name, weight, lambda v: ca.sumsqr(v.u[v.actuators.residual_rows()]), {}, "residual")
+
+
 def state(weight: float, states: Sequence[str] = (), targets: Sequence[float] | None = None, name: str = "state",
           state_weights: Sequence[float] | None = None, at: str | None = None) -> CostTerm:
     """``sum_i c_i (x_{s_i} - target_i)^2`` over the states named ``states``
@@ -332,6 +346,8 @@ COST_KINDS: dict[str, Callable[..., CostTerm]] = {
     "torque_rate": torque_rate,
     "fatigue": fatigue,
     "torque": torque,
+    "activation": activation,
+    "residual": residual,
     "state": state,
     "frame": frame,
 }

@@ -154,6 +154,14 @@ class MuscleActuators(ActuationLayer):
             return zero, zero.copy()
         return self.residuals.per_joint(u[..., self.n_muscles:])
 
+    def activation_rows(self) -> list[int]:
+        """The activations: the first nm controls."""
+        return list(range(self.n_muscles))
+
+    def residual_rows(self) -> list[int]:
+        """The residual halves' torques, after the activations (none without residual torques)."""
+        return list(range(self.n_muscles, self.nu))
+
     def run_record(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray, m: np.ndarray) -> RunRecord:
         """The units' controls (activations, residual torques), the muscle file's text, and at the
         start of every interval each muscle's force (N) and the joint torque (N m), (N, nm) and

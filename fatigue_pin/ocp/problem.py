@@ -208,6 +208,11 @@ class Problem:
             if t.options.get("joints") and t.kind in ("torque", "torque_rate", "fatigue") and not self.actuators.units_per_joint:
                 raise ParameterError(f"cost term {t.name!r}: a {t.kind} term per joint selects torque halves; these actuators "
                                      "are muscles: expected the term over every unit (no joints)")
+            for kind, rows, needs in (("an activation", self.actuators.activation_rows(), "muscles"),
+                                      ("a residual", self.actuators.residual_rows(), "residual torques beside muscles")):
+                if t.kind == kind.split()[1] and not rows:
+                    raise ParameterError(f"cost term {t.name!r}: {kind} term needs {needs}; expected [actuators] kind = "
+                                         f"\"muscles\"{' with residuals > 0' if kind == 'a residual' else ''}, or another term")
             for j in t.options.get("joints", []):
                 if j not in joints:
                     raise ParameterError(f"cost term {t.name!r}: joint {j!r} is not in model {self.model.name!r}; its joints are {list(joints)}")

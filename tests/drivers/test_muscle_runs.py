@@ -50,3 +50,28 @@ def test_the_layer_gives_the_controls_back_from_the_units(two_muscle_run, arm26)
     assert u.shape == (10, layer.nu) and np.array_equal(layer.half_torques(u), run.unit_controls)
     lo, hi = layer.control_bounds()
     assert np.all(u >= lo - 1e-8) and np.all(u <= hi + 1e-8)
+
+
+def test_the_activation_and_residual_terms_are_what_the_run_stores(two_muscle_run):
+    """Each cycle's activation and residual costs are dt * w * the sums of squares of the stored controls."""
+    study, _, run = two_muscle_run
+    dt, costs = run.attrs["dt"], dict(zip(run.cost_terms, run.cycle_costs[0]))
+    assert np.isclose(costs["activation"], dt * np.sum(run.unit_controls[:, :2] ** 2), rtol=1e-9)
+    assert np.isclose(costs["residual"], dt * np.sum(run.unit_controls[:, 2:] ** 2), rtol=1e-9)
+    assert costs["activation"] > 0 and costs["residual"] > 0
+
+
+def test_a_sliding_muscle_run_stitches_its_windows_and_resumes_to_the_same_run(tmp_path):
+    """Two one-cycle windows; run again with resume, the finished run is read back, not solved again."""
+    from conftest import muscle_curl, two_muscle_file
+    from fatigue_pin.io.study import run_study
+
+    study = muscle_curl(two_muscle_file(tmp_path), **{"horizon.kind": "sliding", "horizon.cycles": 1, "horizon.advance": 1,
+                                                      "horizon.max_cycles": 2})
+    out = tmp_path / "sliding.h5"
+    first = run_study(study, out=out).run
+    assert first.n_cycles == 2 and first.unit_controls.shape == (20, 6) and len(first.windows) == 2
+    assert all(bool(w["converged"]) for w in first.windows) and first.fatigued[-1, :2].max() > first.fatigued[10, :2].max() > 0
+    again = run_study(study, out=out, resume=True).run
+    assert np.array_equal(again.unit_controls, first.unit_controls) and np.array_equal(again.q, first.q)
+    assert read_run(out, first.name).muscles == first.muscles

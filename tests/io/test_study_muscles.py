@@ -8,6 +8,7 @@ import pytest
 
 from conftest import small_curl
 from fatigue_pin.cli.main import main
+from fatigue_pin.core.errors import FatiguePinError
 from fatigue_pin.io.study import Study, StudyError
 from fatigue_pin.muscles.geometry import MuscleGeometry
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
@@ -63,6 +64,18 @@ def test_bad_muscle_studies_say_what_was_expected(arm26, changes, message):
     with pytest.raises(StudyError) as info:
         muscle_study(**changes).actuators(arm26)
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("term, message", [
+    ("activation", "cost term 'activation': an activation term needs muscles"),
+    ("residual", "cost term 'residual': a residual term needs residual torques beside muscles"),
+])
+def test_muscle_cost_terms_need_muscles(arm26, term, message):
+    with pytest.raises(FatiguePinError, match=message):
+        small_curl("full").replace({f"costs.{term}": 1.0}).problem(arm26)
+    if term == "residual":  # muscles without residual torques
+        with pytest.raises(FatiguePinError, match=message):
+            muscle_study(**{"actuators.residuals": 0.0, "costs.residual": 1.0}).problem(arm26)
 
 
 def test_muscle_keys_that_need_muscles_are_refused_on_torque_halves(arm26):
