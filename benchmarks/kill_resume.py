@@ -60,7 +60,7 @@ CHILD = textwrap.dedent(
         else:
             time.sleep(PAUSE)
 
-    real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, FS.fsync, os.replace, R._write_run
+    real_clone, real_compact, real_fsync, real_replace, real_group = R.clone, R._compact, FS.fsync, os.replace, R.write_run_group
 
     def clone(src, dst):
         announce("copy")
@@ -84,7 +84,7 @@ CHILD = textwrap.dedent(
         announce("rename")
         real_replace(a, b)
 
-    R.clone, R._compact, R._write_run, FS.fsync, os.replace = clone, compact, group, fsync, replace
+    R.clone, R._compact, R.write_run_group, FS.fsync, os.replace = clone, compact, group, fsync, replace
 
     import contextlib
     import fatigue_pin.ocp.solver as SOLVER

@@ -9,6 +9,11 @@ joint's two halves. The motion plays in real time (one frame per node, 0.02 s), 
 The HTML overlay shows every joint's position as it plays, in its joint's units (deg for a revolute
 joint, m for a prismatic one: :meth:`RunResult.joint_units`).
 
+A muscle run (docs/muscles.md) also draws every muscle as thin cylinders through its path points
+(read from the muscle file's text the run stores), each coloured by that muscle's own fatigued
+fraction; a wrapped segment is drawn straight between its points (the arc round the cylinder is
+not drawn). The spheres then show the residual torque halves, if any.
+
 Three ways to watch a run:
 
 * :func:`export_html`: one self-contained HTML file (meshcat's viewer inlined, no server); the
@@ -50,6 +55,7 @@ FATIGUE_COLORS = np.array([[0.15, 0.70, 0.25], [0.98, 0.80, 0.10], [0.85, 0.10, 
 ROOT = "fatigue_pin"  # meshcat root node of the model
 _MARKER_RADIUS = 0.022  # m
 _MARKER_OFFSET = (0.05, 0.0, 0.04)  # m, in the parent body frame at the joint: (anterior, -, lateral)
+_MUSCLE_RADIUS = 0.004  # m, of the cylinders that draw a muscle's path
 
 
 def fatigue_color(mf: np.ndarray | float) -> np.ndarray:
@@ -110,9 +116,15 @@ class _Kinematics:
     # without one material, so its colour could not be keyframed; the triangles are the mesh as
     # Pinocchio loaded it (coal, scale applied), with one Phong material
     triangle_meshes: set[str] = field(default_factory=set)
+    # a muscle run's muscles: (name, fatigued column, [(frame id, point in the frame), ...]) each
+    muscles: list[tuple[str, int, list[tuple[int, np.ndarray]]]] = field(default_factory=list)
 
     def visual_path(self, name: str) -> str:
         return f"{ROOT}/visuals/{name}"
+
+    @staticmethod
+    def muscle_path(muscle: str, segment: int) -> str:
+        return f"{ROOT}/muscles/{muscle}/{segment}"
 
     @staticmethod
     def marker_path(joint: str, sign: str) -> str:
@@ -130,7 +142,7 @@ def _kinematics(run: RunResult) -> _Kinematics:
         joint_ids.append(model.getJointId(name))
     if model.nq != run.q.shape[1]:
         raise ResultFileError(f"run {run.name!r}: q has {run.q.shape[1]} columns, the model nq = {model.nq}")
-    kin = _Kinematics(model, visual, joint_ids, [_half_columns(run, j) for j in run.joint_names])
+    kin = _Kinematics(model, visual, joint_ids, [_half_columns(run, j) for j in run.joint_names], muscles=_muscles(run, model))
     # A visual is a segment of joint j when its body is attached to joint j directly (not
     # through a fixed joint: the dumbbell keeps its colour).
     for g in visual.geometryObjects:
@@ -141,6 +153,41 @@ def _kinematics(run: RunResult) -> _Kinematics:
             if g.meshPath.lower().endswith(".dae") and hasattr(g.geometry, "num_tris"):
                 kin.triangle_meshes.add(g.name)
     return kin
+
+
+def _muscles(run: RunResult, model: Any) -> list[tuple[str, int, list[tuple[int, np.ndarray]]]]:
+    """The muscles of a muscle run on ``model``'s frames (none for a run of torque halves)."""
+    if not run.muscle_names:
+        return []
+    from fatigue_pin.core.errors import FatiguePinError
+    from fatigue_pin.muscles.files import read_muscles
+
+    try:
+        muscles = read_muscles(run.muscles, f"the muscle file stored with run {run.name!r}")
+    except FatiguePinError as exc:
+        raise ResultFileError(f"run {run.name!r}: its stored muscles do not load: {exc}") from None
+    out = []
+    for m in muscles.muscles:
+        if m.name not in run.actuator_names:
+            raise ResultFileError(f"run {run.name!r}: its stored muscle {m.name!r} is not one of its units {list(run.actuator_names)}")
+        missing = [p.frame for p in m.points if not model.existFrame(p.frame)]
+        if missing:
+            raise ResultFileError(f"run {run.name!r}: muscle {m.name!r} has points on {missing}, which its model does not have")
+        out.append((m.name, run.actuator_names.index(m.name),
+                    [(model.getFrameId(p.frame), np.asarray(p.location, dtype=float)) for p in m.points]))
+    return out
+
+
+def _segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Placement (4 x 4) of meshcat's unit cylinder (height 1 along its y axis) drawn from a to b."""
+    d = b - a
+    length = float(np.linalg.norm(d))
+    y = d / length if length > 1e-12 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(y, [0.0, 0.0, 1.0] if abs(y[2]) < 0.9 else [1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y * length, np.cross(x, y), (a + b) / 2
+    return T
 
 
 def _poses(kin: _Kinematics, q: np.ndarray) -> dict[str, np.ndarray]:
@@ -163,6 +210,12 @@ def _poses(kin: _Kinematics, q: np.ndarray) -> dict[str, np.ndarray]:
             offset = np.array(_MARKER_OFFSET) * (s, 1.0, 1.0)
             M = at_joint * pin.SE3(np.eye(3), offset)
             out[kin.marker_path(model.names[jid], sign)] = M.homogeneous
+    if kin.muscles:
+        pin.updateFramePlacements(model, data)
+        for name, _, points in kin.muscles:
+            world = [data.oMf[f].rotation @ c + data.oMf[f].translation for f, c in points]
+            for k, (a, b) in enumerate(zip(world[:-1], world[1:])):
+                out[kin.muscle_path(name, k)] = _segment(a, b)
     return out
 
 
@@ -179,6 +232,9 @@ def _colors(kin: _Kinematics, mf_row: np.ndarray) -> dict[str, np.ndarray]:
         out[kin.marker_path(name, "minus")] = fatigue_color(m)
     for gname, j in kin.segment_of.items():
         out[kin.visual_path(gname)] = fatigue_color(max(mf(j)))
+    for name, column, points in kin.muscles:
+        for k in range(len(points) - 1):
+            out[kin.muscle_path(name, k)] = fatigue_color(mf_row[column])
     return out
 
 
@@ -378,6 +434,9 @@ def build_animation(run: RunResult, cycles: list[int] | None = None, fps: int = 
         for sign in ("plus", "minus"):
             path = kin.marker_path(kin.model.names[jid], sign)
             vis[path].set_object(mg.Sphere(_MARKER_RADIUS), mg.MeshPhongMaterial(color=0x26b340))
+    for name, _, points in kin.muscles:
+        for k in range(len(points) - 1):
+            vis[kin.muscle_path(name, k)].set_object(mg.Cylinder(1.0, _MUSCLE_RADIUS), mg.MeshPhongMaterial(color=0x26b340))
     poses0, colors0 = frames[0]
     for path, T in poses0.items():
         vis[path].set_transform(T)

@@ -137,3 +137,27 @@ def test_the_overlay_shows_each_joint_in_its_unit(tmp_path: Path) -> None:
     assert [(j["name"], j["unit"]) for j in meta["joints"]] == [("slider", "m"), ("pendulum", "deg")]
     np.testing.assert_allclose(meta["joints"][0]["values"], run.q[:, 0], atol=1e-5)
     assert len(meta["times"]) == scene.n_frames and "fp-joints" in html
+
+
+def test_a_muscle_run_draws_each_muscle_coloured_by_its_own_fatigue(two_muscle_run, arm26) -> None:
+    """Every segment of a muscle's path runs between its points as numeric Pinocchio places them,
+    coloured by that muscle's fatigued fraction at the frame."""
+    import pinocchio as pin
+
+    from fatigue_pin.muscles.files import read_muscles
+    from fatigue_pin.viz.replay import build_animation, fatigue_color
+
+    _, _, run = two_muscle_run
+    scene = build_animation(run)
+    last_poses, last_colors = scene.frames[-1]
+    muscles = read_muscles(run.muscles)
+    model, data = arm26.pin_model, arm26.pin_model.createData()
+    pin.framesForwardKinematics(model, data, run.q[-1])
+    for i, m in enumerate(muscles.muscles):
+        world = [data.oMf[model.getFrameId(p.frame)].act(np.asarray(p.location)) for p in m.points]
+        for k, (a, b) in enumerate(zip(world[:-1], world[1:])):
+            T = last_poses[f"fatigue_pin/muscles/{m.name}/{k}"]
+            y = T[:3, 1]  # the unit cylinder's axis, scaled to the segment
+            assert np.allclose(T[:3, 3] - y / 2, a, atol=1e-9) and np.allclose(T[:3, 3] + y / 2, b, atol=1e-9)
+            assert np.allclose(last_colors[f"fatigue_pin/muscles/{m.name}/{k}"], fatigue_color(run.fatigued[-1, i]))
+    assert not np.allclose(fatigue_color(run.fatigued[-1, 0]), fatigue_color(run.fatigued[-1, 1]))  # each its own
