@@ -298,6 +298,7 @@ class Study:
         import numpy as np
 
         from fatigue_pin.muscles.geometry import MuscleGeometry
+        from fatigue_pin.muscles.polynomial_paths import PolynomialPaths
         from fatigue_pin.ocp.actuators import SignedTorqueActuators
         from fatigue_pin.ocp.muscle_actuators import MuscleActuators
 
@@ -325,6 +326,8 @@ class Study:
                                                           actuation.residuals * np.ones(n), spec, actuation)
         try:
             geometry = MuscleGeometry(model.pin_model, muscles)
+            if actuation.paths == "polynomial":
+                geometry = PolynomialPaths(geometry, tolerance=actuation.path_tolerance)
             return MuscleActuators(model.joint_names, muscles, geometry, params, actuation.coupling, residuals)
         except FatiguePinError as exc:
             raise StudyError(f"model.muscles = {self.data['model']['muscles']!r}: {exc}") from None

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.settings import check_fields, is_bool, is_number, is_strs, setting
 
-__all__ = ["ACTUATOR_KINDS", "COUPLINGS", "Actuation"]
+__all__ = ["ACTUATOR_KINDS", "COUPLINGS", "MUSCLE_PATHS", "Actuation"]
 
 #: The actuator kinds of a study: ``torque``: signed torque halves on the joints; ``muscles``: the
 #: muscles of ``[model] muscles`` (docs/muscles.md).
@@ -23,6 +23,12 @@ ACTUATOR_KINDS = ("torque", "muscles")
 #: row (fatigue integrated, no limit on the torque); ``active``: the control sets TL only, and the
 #: torque the half delivers is ``m_active * limit`` (the torque is driven through the fatigue).
 COUPLINGS = ("tl+mf<=1", "observed", "active")
+
+#: How muscle paths enter the problem (docs/muscles.md, "Polynomial paths"): ``exact``: the points
+#: on the links and the wrap cylinders; ``polynomial``: a polynomial of the crossed coordinates per
+#: muscle, fitted to the exact paths over the joints' ranges
+#: (:class:`~fatigue_pin.muscles.polynomial_paths.PolynomialPaths`).
+MUSCLE_PATHS = ("exact", "polynomial")
 
 
 @dataclass(frozen=True)
@@ -40,6 +46,9 @@ class Actuation:
             0: none.
         residual_fatigue: with muscles, the residual torques tire with the study's fatigue
             models (true), or not (false: their models' F and R are 0, so that they never tire).
+        paths: with muscles, one of :data:`MUSCLE_PATHS`.
+        path_tolerance: with ``paths = "polynomial"``, the root mean square error allowed in the
+            fitted lengths (m) and moment arms (m per rad) over the joints' ranges.
     """
 
     kind: str = setting("torque", f"one of {list(ACTUATOR_KINDS)}", lambda v: v in ACTUATOR_KINDS)
@@ -48,6 +57,8 @@ class Actuation:
     residuals: float = setting(0.0, "a finite torque bound >= 0 (N m; 0: no residual torques)",
                                lambda v: is_number(v) and v >= 0)
     residual_fatigue: bool = setting(False, "true or false", is_bool)
+    paths: str = setting("exact", f"one of {list(MUSCLE_PATHS)}", lambda v: v in MUSCLE_PATHS)
+    path_tolerance: float = setting(1e-4, "a length > 0 (m)", lambda v: is_number(v) and v > 0)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -55,3 +66,6 @@ class Actuation:
         if self.kind != "muscles" and self.residuals > 0:
             raise ParameterError(f"Actuation.residuals = {self.residuals:g}: residual torques go beside muscles; expected "
                                  "kind = 'muscles', or residuals = 0")
+        if self.kind != "muscles" and self.paths != "exact":
+            raise ParameterError(f"Actuation.paths = {self.paths!r}: polynomial paths are muscle paths; expected kind = 'muscles', "
+                                 "or paths = 'exact'")

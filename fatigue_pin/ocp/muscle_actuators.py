@@ -175,8 +175,12 @@ class MuscleActuators(ActuationLayer):
                          {"muscle_force": forces, "joint_torque": np.asarray(tau, dtype=float).reshape(N, self.nv)})
 
     def run_record_attributes(self) -> dict[str, object]:
-        """``actuation = "muscles"`` and ``muscle_names`` (JSON): the first units of the run."""
-        return {"actuation": self.kind, "muscle_names": json.dumps(list(self.muscles.names))}
+        """``actuation = "muscles"`` and ``muscle_names`` (JSON): the first units of the run; on
+        polynomial paths, ``muscle_paths``: the polynomials (JSON), which verify checks the run on."""
+        attrs: dict[str, object] = {"actuation": self.kind, "muscle_names": json.dumps(list(self.muscles.names))}
+        if hasattr(self.geometry, "to_json"):
+            attrs["muscle_paths"] = self.geometry.to_json()
+        return attrs
 
     def control_scales(self, magnitude: np.ndarray) -> np.ndarray:
         """Scales of the controls, (nu,): 1 for the activations (of order 1), the residual

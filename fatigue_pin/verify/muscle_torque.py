@@ -11,11 +11,16 @@ transcription's CasADi expressions.
   curves with Moco's constants (checked against their formulas at sample points).
 
 So a transcription whose muscle paths, moment arms or forces were wrong would show as gaps.
+
+A run solved on polynomial paths (:mod:`fatigue_pin.muscles.polynomial_paths`) is checked on its
+stored polynomials, evaluated on numbers (numpy Chebyshev recurrences, not the transcription's SX),
+with the same differences; :meth:`NumericMuscles.polynomial_errors` says how far they are from the
+exact paths along the run.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -36,18 +41,43 @@ class NumericMuscles:
     Args:
         model: the numeric ``pinocchio.Model`` the run was solved on (nq == nv).
         muscles: the muscle set stored with the run.
+        polynomials: the run's polynomial paths, one per muscle in order
+            (:class:`~fatigue_pin.muscles.polynomial_paths.PathPolynomial`), or None: the exact paths.
     """
 
-    def __init__(self, model: Any, muscles: MuscleSet) -> None:
+    def __init__(self, model: Any, muscles: MuscleSet, polynomials: Sequence[Any] | None = None) -> None:
         import pinocchio as pin
 
         self.pin, self.model, self.data, self.muscles = pin, model, model.createData(), muscles
+        self.polynomials = None if polynomials is None else tuple(polynomials)
         frames = {p.frame for m in muscles.muscles for p in m.points} | {w.frame for w in muscles.wraps}
         self._frame_ids = {f: model.getFrameId(f) for f in frames}
         self._wraps = {w.name: w for w in muscles.wraps}
 
     def lengths(self, q: np.ndarray) -> np.ndarray:
-        """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,)."""
+        """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,): the run's
+        polynomials if it has them, else the exact paths."""
+        if self.polynomials is not None:
+            pose = np.asarray(q, dtype=float).reshape(1, -1)
+            return np.array([float(p.length(pose)[0]) for p in self.polynomials])
+        return self.exact_lengths(q)
+
+    def polynomial_errors(self, q: np.ndarray) -> tuple[float, float]:
+        """The largest differences between the polynomial and the exact paths over poses q
+        (n, nq): length (m) and moment arm (m per rad, by five-point differences); (0, 0) for a
+        run on exact paths."""
+        if self.polynomials is None:
+            return 0.0, 0.0
+        dL = dr = 0.0
+        for pose in np.atleast_2d(np.asarray(q, dtype=float)):
+            Lp, Jp = self.length_gradient(pose)
+            Le, Je = self.length_gradient(pose, exact=True)
+            dL, dr = max(dL, float(np.max(np.abs(Lp - Le)))), max(dr, float(np.max(np.abs(Jp - Je))))
+        return dL, dr
+
+    def exact_lengths(self, q: np.ndarray) -> np.ndarray:
+        """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,), from the points
+        and wraps on the links."""
         pin, model, data = self.pin, self.model, self.data
         pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
         placed = {f: (data.oMf[i].rotation.copy(), data.oMf[i].translation.copy()) for f, i in self._frame_ids.items()}
@@ -68,15 +98,17 @@ class NumericMuscles:
             out[i] = total
         return out
 
-    def length_gradient(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The lengths (nm,) and dL/dq (nm, nq) by five-point central differences."""
+    def length_gradient(self, q: np.ndarray, exact: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """The lengths (nm,) and dL/dq (nm, nq) by five-point central differences (``exact``: of
+        the exact paths, whatever the run's)."""
         q = np.asarray(q, dtype=float)
+        lengths = self.exact_lengths if exact else self.lengths
         J = np.zeros((len(self.muscles.muscles), q.size))
         for j in range(q.size):
             e = np.zeros(q.size)
             e[j] = STEP
-            J[:, j] = (8 * (self.lengths(q + e) - self.lengths(q - e)) - (self.lengths(q + 2 * e) - self.lengths(q - 2 * e))) / (12 * STEP)
-        return self.lengths(q), J
+            J[:, j] = (8 * (lengths(q + e) - lengths(q - e)) - (lengths(q + 2 * e) - lengths(q - 2 * e))) / (12 * STEP)
+        return lengths(q), J
 
     def forces(self, q: np.ndarray, qdot: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Tendon force of every muscle (N), (nm,), at activations ``a`` (nm,)."""

@@ -145,16 +145,18 @@ def rebuild(run: RunResult) -> Stored:
     task = _task(run, study, n, notes)
     cols = [run.fatigue[s][:, h] for h, half in enumerate(halves) for s in half.states]
     M = np.column_stack(cols).astype(float) if cols else np.zeros((N + 1, 0))
-    muscles, activations = _muscles(run, robot)
+    muscles, activations = _muscles(run, robot, notes)
     return Stored(run=run, robot=robot, task=task, halves=halves, limits=limits, horizon=horizon, dt=dt, n=n,
                   substeps=substeps, Y=np.hstack([run.q, run.qdot]).astype(float), M=M,
                   tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=run.target_loads(), notes=notes,
                   muscles=muscles, activations=activations)
 
 
-def _muscles(run: RunResult, robot) -> tuple[Any, np.ndarray | None]:
+def _muscles(run: RunResult, robot, notes: list[str]) -> tuple[Any, np.ndarray | None]:
     """A muscle run's muscles, read from the muscle file text it stores, on the rebuilt model, and
-    their activations (N, nm); (None, None) for a run of torque halves."""
+    their activations (N, nm); (None, None) for a run of torque halves. A run solved on polynomial
+    paths (attribute ``muscle_paths``) is checked on those polynomials, and ``notes`` gets how far
+    they are from the exact paths along the run."""
     if run.actuation == "torque":
         return None, None
     if run.actuation != "muscles":
@@ -175,6 +177,22 @@ def _muscles(run: RunResult, robot) -> tuple[Any, np.ndarray | None]:
     missing = sorted({p.frame for m in muscles.muscles for p in m.points} - set(robot.pin_model.names) - {f.name for f in robot.pin_model.frames})
     if missing:
         raise ResultFileError(f"run {run.name!r}: its muscles' points are on links {missing}, which its model does not have")
+    polynomials = None
+    if run.attrs.get("muscle_paths"):
+        from fatigue_pin.muscles.polynomial_paths import PolynomialPaths
+
+        try:
+            polynomials = PolynomialPaths.polynomials_from_json(str(run.attrs["muscle_paths"]))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ResultFileError(f"run {run.name!r}: its polynomial muscle paths (attribute muscle_paths) do not load ({exc})") from None
+        if tuple(p.muscle for p in polynomials) != muscles.names:
+            raise ResultFileError(f"run {run.name!r}: polynomial paths for {[p.muscle for p in polynomials]}; expected its muscles "
+                                  f"{list(muscles.names)}")
+        numeric = NumericMuscles(robot.pin_model, muscles, polynomials)
+        dL, dr = numeric.polynomial_errors(np.asarray(run.q, dtype=float))
+        notes.append(f"muscle paths: the run's polynomials (checked as solved); along its motion they differ from the exact "
+                     f"paths by at most {dL * 1e3:.3g} mm in length and {dr * 1e3:.3g} mm in moment arm")
+        return numeric, run.half_torques()[:, : len(muscles.names)]
     return NumericMuscles(robot.pin_model, muscles), run.half_torques()[:, : len(muscles.names)]
 
 

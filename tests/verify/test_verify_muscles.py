@@ -43,3 +43,28 @@ def test_verify_re_integrates_a_muscle_run_with_the_numeric_muscles(two_muscle_r
     # the small curl's grid (2 RK4 substeps of 0.05 s) is coarse for the muscles: named as such
     assert report.gap_qdot > 1e-3 and any("too coarse for the gap tolerance" in n for n in report.notes)
     assert abs(report.rk4_truncation - max(report.gap_q, report.gap_qdot)) <= 1e-6  # the gaps are the grid's RK4 error
+
+
+def test_a_run_on_polynomial_paths_is_checked_on_its_own_polynomials(tmp_path):
+    from conftest import muscle_curl, two_muscle_file
+
+    from fatigue_pin.io.results import read_run
+    from fatigue_pin.io.study import run_study
+    from fatigue_pin.muscles.polynomial_paths import PolynomialPaths
+
+    study = muscle_curl(two_muscle_file(tmp_path), **{"actuators.paths": "polynomial", "solver.compile": False})
+    out = tmp_path / "poly.h5"
+    run_study(study, out=out, name="full/poly")
+    run = read_run(out, "full/poly")
+    assert run.attrs["muscle_paths"]
+    report = verify_run(run)
+    # the RK4 written again with the run's polynomials, on numbers, reproduces its nodes ...
+    assert report.rk4_residual < 1e-6
+    # ... and the report says how far those polynomials are from the exact paths on the motion
+    note = next(n for n in report.notes if n.startswith("muscle paths: the run's polynomials"))
+    assert "mm in length" in note
+    # checked on the exact paths instead, the same nodes are off by more than the polynomials' RK4 residual
+    exact = NumericMuscles(study.model().pin_model, study.muscles())
+    numeric = NumericMuscles(study.model().pin_model, study.muscles(), PolynomialPaths.polynomials_from_json(run.attrs["muscle_paths"]))
+    q = np.asarray(run.q[3], dtype=float)
+    assert 1e-9 < np.max(np.abs(exact.lengths(q) - numeric.lengths(q))) < 1e-3
