@@ -123,7 +123,17 @@ class PathPolynomial:
 
     def length(self, q: np.ndarray) -> np.ndarray:
         """Lengths (n,) (m) at poses q (n, nq), on numbers."""
-        terms, _ = self._basis(q)
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        e = np.asarray(self.exponents, dtype=int).reshape(-1, len(self.joints))
+        s = (q[:, list(self.joints)] - np.asarray(self.center)) / np.asarray(self.half_range)
+        terms = np.ones((q.shape[0], e.shape[0]))
+        for j in range(len(self.joints)):
+            T = np.ones((q.shape[0], self.order + 1))
+            if self.order >= 1:
+                T[:, 1] = s[:, j]
+            for n in range(1, self.order):
+                T[:, n + 1] = 2 * s[:, j] * T[:, n] - T[:, n - 1]
+            terms *= T[:, e[:, j]]
         return terms @ np.asarray(self.coefficients)
 
     def gradient(self, q: np.ndarray, nq: int) -> np.ndarray:

@@ -66,9 +66,11 @@ class IntervalFunctions:
     """
 
     def __init__(self, problem: Problem, transcription: Transcription, fatigue_calls: bool = False) -> None:
-        """``fatigue_calls``: integrate the fatigue states as MX calls of the SX right-hand side
-        of one half, mapped over the halves (for a compiled library: derivative code of one half
-        instead of all, same values) instead of one SX function of all halves."""
+        """``fatigue_calls`` (for a compiled library): integrate the fatigue states as MX calls of
+        the SX right-hand side of one half, mapped over the halves (derivative code of one half
+        instead of all, same values) instead of one SX function of all halves; and differentiate
+        a rigid body whose torque follows the state one direction at a time (:attr:`F_rb_active`:
+        smaller code, slower in CasADi's virtual machine)."""
         model, actuators, task = problem.model, problem.actuators, problem.task
         layout = problem.layout
         self.layout = layout
@@ -133,7 +135,7 @@ class IntervalFunctions:
         #: ``F_rb_active(y, m, u, p) -> y_next``, the y part of RK4 of (y, m) (its m part is
         #: :attr:`F_fatigue`'s, m not depending on y); None otherwise
         #: (:attr:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.torque_follows_state`)
-        self.F_rb_active = self._active_rigid_body(h, substeps) if actuators.torque_follows_state else None
+        self.F_rb_active = self._active_rigid_body(h, substeps, fatigue_calls) if actuators.torque_follows_state else None
         v = IntervalVariables(x, u, u_prev, layout, model, actuators)
         integrands = [term.expression(v) for term in problem.costs if not term.terminal]
         terms = (ca.vertcat(*integrands) if integrands else ca.SX(0, 1)) * task.dt
@@ -216,10 +218,11 @@ class IntervalFunctions:
             return stacked
         return stacked[np.argsort(rows).tolist(), :]  # back to the halves' order
 
-    def _active_rigid_body(self, h: float, substeps: int) -> ca.Function:
+    def _active_rigid_body(self, h: float, substeps: int, one_direction: bool = False) -> ca.Function:
         """``F_rb_active(y, m, u, p) -> y_next``: RK4 of ``(y, m)`` with the joint torque of the
-        halves' active fractions (``active`` coupling), its y part. MX calls of the SX
-        right-hand sides, as :attr:`F_rb`."""
+        halves' active fractions (``active`` coupling) or of the muscles, its y part. MX calls of
+        the SX right-hand sides, as :attr:`F_rb`; ``one_direction``: their derivatives one
+        direction at a time (for compiled code)."""
         A, L = self.actuators, self.layout
         ny = L.nq + L.nv
         y, m = ca.MX.sym("y", ny), ca.MX.sym("m", A.n_states)
@@ -227,7 +230,12 @@ class IntervalFunctions:
         z = ca.SX.sym("z", ny + A.n_states)
         us, ps = ca.SX.sym("u", A.nu), ca.SX.sym("p", A.n_params)
         tau = A.joint_torque(us, z[ny:], z[:ny])  # muscles: on (q, qdot) too
-        f = ca.Function("f_active", [z, us, ps], [ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps))])
+        # compiled, its derivatives one direction at a time: the Hessian block of the muscle curl
+        # (arm26, polynomial paths) is 2.0 MB of C against 11.7 MB with CasADi's bundled directions,
+        # the Jacobian block 0.55 against 1.18 MB (docs/muscles.md, "Compiled muscle problems");
+        # uncompiled, the bundled directions are five times faster in CasADi's virtual machine
+        f = ca.Function("f_active", [z, us, ps], [ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps))],
+                        {"max_num_dir": 1} if one_direction else {})
         z_next = rk4(f, ca.vertcat(y, m), (u, p), h, substeps)
         return ca.Function("F_rb_active", [y, m, u, p], [z_next[:ny]], ["y", "m", "u", "p"], ["y_next"])
 
