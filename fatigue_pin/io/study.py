@@ -277,17 +277,33 @@ class Study:
         return SignedTorqueActuators.from_model(model, self.fatigue_spec(model), actuation)
 
     def muscles(self):
-        """The :class:`~fatigue_pin.muscles.muscle_set.MuscleSet` of ``[model] muscles``."""
-        from fatigue_pin.muscles.files import load_muscles
+        """The :class:`~fatigue_pin.muscles.muscle_set.MuscleSet` of ``[model] muscles``, or of the
+        OpenSim model ``[model] osim`` (its muscles, written as a muscle file's text:
+        :mod:`fatigue_pin.robot.osim`)."""
+        from fatigue_pin.muscles.files import load_muscles, read_muscles
 
-        source = self.data["model"].get("muscles", "")
+        key, source = self._muscle_source()
         if not source:
             raise StudyError('actuators.kind = "muscles": the model has no muscles; expected [model] muscles = a bundled muscle file '
-                             '("arm26") or a muscle file path')
+                             '("arm26") or a muscle file path, or [model] osim = an OpenSim model with muscles')
         try:
+            if key == "model.osim":
+                imported = build(SECTIONS["model"], self.data["model"], "model").read_osim()
+                if not imported.muscles:
+                    raise StudyError(f'model.osim = {source!r}: actuators.kind = "muscles", but the OpenSim model has no muscles')
+                return read_muscles(imported.muscles, str(imported.path))
             return load_muscles(source)
+        except StudyError:
+            raise
         except FatiguePinError as exc:
-            raise StudyError(f"model.muscles = {source!r}: {exc}") from None
+            raise StudyError(f"{key} = {source!r}: {exc}") from None
+
+    def _muscle_source(self) -> tuple[str, str]:
+        """The key that gives the muscles (``model.muscles`` or ``model.osim``) and its value."""
+        model = self.data["model"]
+        if model.get("osim"):
+            return "model.osim", str(model["osim"])
+        return "model.muscles", str(model.get("muscles", ""))
 
     def muscle_actuators(self, model):
         """The :class:`~fatigue_pin.ocp.muscle_actuators.MuscleActuators` of ``model``: the muscles
@@ -310,7 +326,7 @@ class Study:
         unknown = [key for key in overrides if key not in names]
         if unknown:
             raise StudyError(f"fatigue.muscles.{unknown[0]}: {unknown[0]!r} is neither a muscle nor a group of "
-                             f"{self.data['model']['muscles']!r}; its muscles are {list(muscles.names)}")
+                             f"{self._muscle_source()[1]!r}; its muscles are {list(muscles.names)}")
         # by muscle or group name, as MuscleActuators resolves them (a muscle's own wins over its group's)
         params = {**{m.name: base for m in muscles.muscles if m.name not in overrides and m.group not in overrides},
                   **{key: _fatigue_model(sub, fat) for key, sub in overrides.items()}}
@@ -327,7 +343,8 @@ class Study:
             geometry = MuscleGeometry(model.pin_model, muscles)
             return MuscleActuators(model.joint_names, muscles, geometry, params, actuation.coupling, residuals)
         except FatiguePinError as exc:
-            raise StudyError(f"model.muscles = {self.data['model']['muscles']!r}: {exc}") from None
+            key, source = self._muscle_source()
+            raise StudyError(f"{key} = {source!r}: {exc}") from None
 
     def transcription(self):
         """The :class:`~fatigue_pin.ocp.transcription.Transcription` of ``[transcription]``."""
