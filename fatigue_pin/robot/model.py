@@ -485,6 +485,22 @@ class ModelSource:
         return resolve_model(self.urdf, gravity=self.gravity, payload=self.payload, locked_joints=self.locked_joints)
 
 
+def _parse_urdf(text: str, path: Path) -> pin.Model:
+    """Pinocchio's model of a URDF text (``path`` names it), its joints checked (:func:`_validate_joints`)."""
+    with quiet_stderr() as parser_lines:
+        try:
+            model = pin.buildModelFromXML(text)
+        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+            failure = exc
+        else:
+            failure = None
+    if failure is not None:  # the parser's own lines (urdfdom) say what is wrong; Pinocchio's message does not
+        said = [line.removeprefix("Error:").strip() for line in parser_lines if not line.startswith("at line")]
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {'; '.join(said + [' '.join(str(failure).split())])}") from failure
+    _validate_joints(model, path)
+    return model
+
+
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None,
                locked_joints: Mapping[str, float] | None = None, *, text: str | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
@@ -513,17 +529,7 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
     own_gravity = check_urdf_text(path, locked_joints or {}, text)
     if text is None:
         text = path.read_text()
-    with quiet_stderr() as parser_lines:
-        try:
-            model = pin.buildModelFromXML(text)
-        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
-            failure = exc
-        else:
-            failure = None
-    if failure is not None:  # the parser's own lines (urdfdom) say what is wrong; Pinocchio's message does not
-        said = [line.removeprefix("Error:").strip() for line in parser_lines if not line.startswith("at line")]
-        raise ModelError(f"URDF file {str(path)!r} does not parse: {'; '.join(said + [' '.join(str(failure).split())])}") from failure
-    _validate_joints(model, path)
+    model = _parse_urdf(text, path)
     if locked_joints:
         model = lock_joints(model, dict(locked_joints), path)
     locked = tuple((str(k), float(v)) for k, v in (locked_joints or {}).items())

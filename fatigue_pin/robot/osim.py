@@ -61,6 +61,7 @@ from typing import Iterable
 import numpy as np
 
 from fatigue_pin.core.errors import ModelError
+from fatigue_pin.robot.osim_xml import Reader, euler_xyz, flag, fmt, objects, rot, rpy, text, vec
 
 __all__ = ["OsimModel", "read_osim", "MUSCLE_CLASSES", "JOINT_CLASSES"]
 
@@ -96,98 +97,6 @@ class OsimModel:
     dropped_wraps: tuple[str, ...] = ()
 
 
-# -- small helpers --------------------------------------------------------------------------------
-
-
-class _Reader:
-    """Messages and numbers of one file."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def error(self, what: str) -> ModelError:
-        return ModelError(f"OpenSim model {str(self.path)!r}: {what}")
-
-    def numbers(self, element: ET.Element | None, tag: str, count: int, owner: str, default: Iterable[float] | None = None) -> np.ndarray:
-        child = element.find(tag) if element is not None else None
-        if child is None or child.text is None or not child.text.strip():
-            if default is not None:
-                return np.asarray(list(default), dtype=float)
-            raise self.error(f"{owner} has no <{tag}>; expected {count} number{'s' if count > 1 else ''}")
-        try:
-            values = np.array([float(x) for x in child.text.split()])
-        except ValueError:
-            values = np.array([])
-        if values.size != count or not np.all(np.isfinite(values)):
-            raise self.error(f"{owner}: <{tag}>{child.text.strip()}</{tag}>: expected {count} finite number{'s' if count > 1 else ''}")
-        return values
-
-    def value(self, element: ET.Element, owner: str) -> float:
-        """The one finite number an element holds."""
-        try:
-            v = float((element.text or "").strip())
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v):
-            raise self.error(f"{owner}: <{element.tag}>{(element.text or '').strip()}</{element.tag}>: expected a finite number")
-        return v
-
-    def number(self, element: ET.Element, tag: str, owner: str, default: float | None = None) -> float:
-        return float(self.numbers(element, tag, 1, owner, None if default is None else [default])[0])
-
-
-def _text(element: ET.Element | None, tag: str, default: str = "") -> str:
-    child = element.find(tag) if element is not None else None
-    return (child.text or "").strip() if child is not None else default
-
-
-def _flag(element: ET.Element, tag: str, default: bool) -> bool:
-    text = _text(element, tag, "").lower()
-    return default if not text else text in ("true", "1")
-
-
-def _objects(parent: ET.Element | None, set_tag: str) -> list[ET.Element]:
-    """The children of ``<set_tag><objects>`` of ``parent``."""
-    if parent is None:
-        return []
-    holder = parent.find(set_tag)
-    if holder is None:
-        return []
-    objects = holder.find("objects")
-    return list(objects) if objects is not None else []
-
-
-def _rot(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix (3, 3) of ``angle`` (rad) about the unit vector ``axis``."""
-    x, y, z = axis
-    c, s, t = math.cos(angle), math.sin(angle), 1 - math.cos(angle)
-    return np.array([[t * x * x + c, t * x * y - s * z, t * x * z + s * y],
-                     [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
-                     [t * x * z - s * y, t * y * z + s * x, t * z * z + c]])
-
-
-def _euler_xyz(angles: np.ndarray) -> np.ndarray:
-    """Body-fixed X-Y-Z Euler angles (rad): Rx(a) Ry(b) Rz(c) (OpenSim's orientations)."""
-    a, b, c = angles
-    return _rot(np.array([1.0, 0, 0]), a) @ _rot(np.array([0, 1.0, 0]), b) @ _rot(np.array([0, 0, 1.0]), c)
-
-
-def _rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll, pitch, yaw (fixed axes X, Y, Z: R = Rz(yaw) Ry(pitch) Rx(roll)) of a rotation matrix."""
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    if abs(math.cos(pitch)) < 1e-12:  # gimbal lock: roll taken as 0
-        return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1])
-    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
-
-
-def _f(x: float) -> str:
-    return repr(float(x)) if x != 0 else "0"
-
-
-def _vec(v: Iterable[float]) -> str:
-    return " ".join(_f(x) for x in v)
-
-
 @dataclass
 class _Frame:
     """A frame fixed on a body: its placement (R, p) in the body's frame."""
@@ -215,7 +124,7 @@ class _Axis:
 
 class _Osim:
     def __init__(self, path: Path, ignore_wraps: bool | Iterable[str], effort: float) -> None:
-        self.r = _Reader(path)
+        self.r = Reader(path)
         self.path = path
         self.effort = float(effort)
         self.ignore = ignore_wraps if isinstance(ignore_wraps, bool) else frozenset(ignore_wraps)
@@ -241,7 +150,7 @@ class _Osim:
                                "(Version >= 40000, a <ground>); re-save it with OpenSim 4")
         self.ground = ground.get("name") or "ground"
         self.bodies: dict[str, ET.Element] = {self.ground: ground}
-        for body in _objects(model, "BodySet"):
+        for body in objects(model, "BodySet"):
             if body.tag != "Body":
                 raise self.r.error(f"<{body.tag} name={body.get('name')!r}> in the BodySet: expected <Body> elements")
             self.bodies[body.get("name")] = body
@@ -273,16 +182,16 @@ class _Osim:
                                f"its bodies are {list(self.bodies)}")
         if depth > 20:
             raise self.r.error(f"{owner}: offset frame {name!r} is offset from itself")
-        parent = self.frame(_text(element, "socket_parent"), f"offset frame {name!r}", local, depth + 1)
-        R = _euler_xyz(self.r.numbers(element, "orientation", 3, f"offset frame {name!r}", (0, 0, 0)))
+        parent = self.frame(text(element, "socket_parent"), f"offset frame {name!r}", local, depth + 1)
+        R = euler_xyz(self.r.numbers(element, "orientation", 3, f"offset frame {name!r}", (0, 0, 0)))
         p = self.r.numbers(element, "translation", 3, f"offset frame {name!r}", (0, 0, 0))
         return _Frame(parent.body, parent.R @ R, parent.R @ p + parent.p)
 
     # -- joints ------------------------------------------------------------------------------------
 
     def check_constraints(self) -> None:
-        for c in _objects(self.model, "ConstraintSet"):
-            enforced = _flag(c, "isEnforced", True) and not _flag(c, "isDisabled", False)
+        for c in objects(self.model, "ConstraintSet"):
+            enforced = flag(c, "isEnforced", True) and not flag(c, "isDisabled", False)
             if enforced:
                 raise self.r.error(f"{c.tag} {c.get('name')!r} constrains the coordinates; fatigue_pin reads models whose "
                                    "coordinates are independent (expected no enforced constraint)")
@@ -302,7 +211,7 @@ class _Osim:
         if lo > hi:
             raise self.r.error(f"coordinate {name!r}: range {lo:g} {hi:g}; expected the lower bound first")
         value = self.r.number(coord, "default_value", f"coordinate {name!r}", 0.0)
-        return _Axis(name, kind, axis / norm, float(lo), float(hi), _flag(coord, "locked", False), value)
+        return _Axis(name, kind, axis / norm, float(lo), float(hi), flag(coord, "locked", False), value)
 
     def custom_axes(self, joint: ET.Element, coords: dict[str, ET.Element], owner: str) -> list[_Axis]:
         spatial = joint.find("SpatialTransform")
@@ -313,7 +222,7 @@ class _Osim:
         for transform in spatial.findall("TransformAxis"):
             axis_name = transform.get("name", "")
             where = f"{owner}, transform axis {axis_name!r}"
-            names = _text(transform, "coordinates").split()
+            names = text(transform, "coordinates").split()
             function = self.function(transform)
             if len(names) > 1:
                 raise self.r.error(f"{where} is driven by the coordinates {names} together (coupled); expected one coordinate per axis")
@@ -356,22 +265,22 @@ class _Osim:
             slope, intercept = self.r.numbers(function, "coefficients", 2, "a LinearFunction")
             return slope == 1.0 and intercept == 0.0
         if function.tag in _SPLINES:
-            x = self.r.numbers(function, "x", len(_text(function, "x").split()), "a spline")
-            y = self.r.numbers(function, "y", len(_text(function, "y").split()), "a spline")
+            x = self.r.numbers(function, "x", len(text(function, "x").split()), "a spline")
+            y = self.r.numbers(function, "y", len(text(function, "y").split()), "a spline")
             return x.size >= 2 and x.size == y.size and bool(np.all(np.abs(x - y) <= 1e-12 * np.maximum(1, np.abs(x))))
         return False
 
     def joints(self) -> list[tuple[ET.Element, _Frame, _Frame, list[_Axis]]]:
         out = []
         children: dict[str, str] = {}
-        for joint in _objects(self.model, "JointSet"):
+        for joint in objects(self.model, "JointSet"):
             name = joint.get("name")
             owner = f"{joint.tag} {name!r}"
             if joint.tag not in JOINT_CLASSES:
                 raise self.r.error(f"{owner} is of a joint kind fatigue_pin does not read; expected one of {list(JOINT_CLASSES)}")
             local = {f.get("name"): f for f in joint.iter("PhysicalOffsetFrame")}
-            parent = self.frame(_text(joint, "socket_parent_frame"), f"{owner} (socket_parent_frame)", local)
-            child = self.frame(_text(joint, "socket_child_frame"), f"{owner} (socket_child_frame)", local)
+            parent = self.frame(text(joint, "socket_parent_frame"), f"{owner} (socket_parent_frame)", local)
+            child = self.frame(text(joint, "socket_child_frame"), f"{owner} (socket_child_frame)", local)
             if child.body == self.ground:
                 raise self.r.error(f"{owner} has the ground as its child; expected the ground as a parent only")
             if child.body in children:
@@ -409,7 +318,7 @@ class _Osim:
                  f"<!-- {self.name}: written by fatigue_pin from the OpenSim model {self.path.name} "
                  "(fatigue_pin.robot.osim); OpenSim's ground (y up) turned by Rx(+pi/2) into the world (z up). -->",
                  f'<robot name="{self.name}">',
-                 f'  <gravity xyz="{_vec(g)}"/>',
+                 f'  <gravity xyz="{vec(g)}"/>',
                  '  <link name="world"/>',
                  f'  <joint name="world_to_{self.ground}" type="fixed">',
                  '    <parent link="world"/>',
@@ -441,12 +350,12 @@ class _Osim:
         com = self.r.numbers(element, "mass_center", 3, owner, (0, 0, 0))
         ixx, iyy, izz, ixy, ixz, iyz = self.r.numbers(element, "inertia", 6, owner, (0,) * 6)
         if min(ixx, iyy, izz) < 0:
-            raise self.r.error(f"{owner} has inertia {_vec([ixx, iyy, izz])} on its diagonal; expected moments >= 0 (kg m^2)")
+            raise self.r.error(f"{owner} has inertia {vec([ixx, iyy, izz])} on its diagonal; expected moments >= 0 (kg m^2)")
         if mass == 0 and not any((ixx, iyy, izz, ixy, ixz, iyz)):
             return [f'  <link name="{body}"/>']
-        return [f'  <link name="{body}">', "    <inertial>", f'      <origin xyz="{_vec(com)}" rpy="0 0 0"/>',
-                f'      <mass value="{_f(mass)}"/>',
-                f'      <inertia ixx="{_f(ixx)}" ixy="{_f(ixy)}" ixz="{_f(ixz)}" iyy="{_f(iyy)}" iyz="{_f(iyz)}" izz="{_f(izz)}"/>',
+        return [f'  <link name="{body}">', "    <inertial>", f'      <origin xyz="{vec(com)}" rpy="0 0 0"/>',
+                f'      <mass value="{fmt(mass)}"/>',
+                f'      <inertia ixx="{fmt(ixx)}" ixy="{fmt(ixy)}" ixz="{fmt(ixz)}" iyy="{fmt(iyy)}" iyz="{fmt(iyz)}" izz="{fmt(izz)}"/>',
                 "    </inertial>", "  </link>"]
 
     def chain(self, joint: ET.Element, parent: _Frame, child: _Frame, axes: list[_Axis]) -> list[str]:
@@ -460,7 +369,7 @@ class _Osim:
             last = k == len(steps) - 1 and _is_identity(child)
             target = child.body if last else f"{name}_{a.name}_link"
             if a.locked:  # the motion at the held value folded into the placement
-                M = _rot(a.axis, a.value) if a.kind == "revolute" else np.eye(3)
+                M = rot(a.axis, a.value) if a.kind == "revolute" else np.eye(3)
                 t = a.axis * a.value if a.kind == "prismatic" else np.zeros(3)
                 R, p = R @ M, R @ t + p
                 if not last:
@@ -485,14 +394,14 @@ class _Osim:
         """Every wrap object by name: (its body, its element); and the names of those left out."""
         out, dropped = {}, []
         for body, element in self.bodies.items():
-            for w in _objects(element, "WrapObjectSet"):
+            for w in objects(element, "WrapObjectSet"):
                 name = w.get("name")
                 owner = f"{w.tag} {name!r} on body {body!r}"
                 if w.tag == "WrapCylinder":
                     radius = self.r.number(w, "radius", owner)
                     if not radius > 0:
                         raise self.r.error(f"{owner} has radius {radius:g}; expected a cylinder radius > 0 (m)")
-                if not _flag(w, "active", True):
+                if not flag(w, "active", True):
                     dropped.append(name)
                     continue
                 out[name] = (body, w)
@@ -512,7 +421,7 @@ class _Osim:
         used_wraps: dict[str, str] = {}
         dropped: list[str] = []
         blocks = []
-        for force in _objects(self.model, "ForceSet"):
+        for force in objects(self.model, "ForceSet"):
             name = force.get("name")
             owner = f"{force.tag} {name!r}"
             if force.tag not in MUSCLE_CLASSES:
@@ -525,9 +434,9 @@ class _Osim:
             w = wraps[wname][1]
             where = f"WrapCylinder {wname!r}"
             head += ["[[wraps]]", f'name = "{wname}"', f'frame = "{body}"',
-                     f"translation = [{', '.join(_f(x) for x in self.r.numbers(w, 'translation', 3, where, (0, 0, 0)))}]",
-                     f"rotation = [{', '.join(_f(x) for x in self.r.numbers(w, 'xyz_body_rotation', 3, where, (0, 0, 0)))}]",
-                     f"radius = {_f(self.r.number(w, 'radius', where))}", ""]
+                     f"translation = [{', '.join(fmt(x) for x in self.r.numbers(w, 'translation', 3, where, (0, 0, 0)))}]",
+                     f"rotation = [{', '.join(fmt(x) for x in self.r.numbers(w, 'xyz_body_rotation', 3, where, (0, 0, 0)))}]",
+                     f"radius = {fmt(self.r.number(w, 'radius', where))}", ""]
         return "\n".join(head + blocks), tuple(dict.fromkeys(dropped))
 
     def muscle(self, force: ET.Element, owner: str, wraps: dict, used_wraps: dict, dropped: list, moved_by: dict[str, str]) -> str:
@@ -557,13 +466,13 @@ class _Osim:
         if path is None:
             raise self.r.error(f"{owner} has no <GeometryPath>; expected its path points")
         points = []
-        for point in _objects(path, "PathPointSet"):
+        for point in objects(path, "PathPointSet"):
             pname = point.get("name")
             where = f"{owner}, path point {pname!r}"
             if point.tag != "PathPoint":
                 raise self.r.error(f"{where} is a {point.tag}; expected fixed PathPoints (a moving or conditional point is "
                                    "not read)")
-            reference = _text(point, "socket_parent_frame") or _text(point, "body")
+            reference = text(point, "socket_parent_frame") or text(point, "body")
             frame = self.frame(reference, where)
             location = frame.R @ self.r.numbers(point, "location", 3, where) + frame.p
             points.append((frame.body, location))
@@ -573,8 +482,8 @@ class _Osim:
             raise self.r.error(f"{owner} crosses no joint: its points are all on {sorted({b for b, _ in points})}, which move "
                                "together; expected a path across at least one joint")
         uses = []
-        for pw in _objects(path, "PathWrapSet"):
-            wname = _text(pw, "wrap_object")
+        for pw in objects(path, "PathWrapSet"):
+            wname = text(pw, "wrap_object")
             where = f"{owner}, path wrap {wname!r}"
             if wname in self.inactive:
                 continue  # an inactive wrap object
@@ -584,8 +493,8 @@ class _Osim:
             problem = None
             if w.tag != "WrapCylinder":
                 problem = f"a {w.tag}, which fatigue_pin does not model (it models WrapCylinder)"
-            elif _text(w, "quadrant", "all").lower() not in ("all", ""):
-                problem = f"a WrapCylinder constrained to quadrant {_text(w, 'quadrant')!r}; fatigue_pin models quadrant 'all'"
+            elif text(w, "quadrant", "all").lower() not in ("all", ""):
+                problem = f"a WrapCylinder constrained to quadrant {text(w, 'quadrant')!r}; fatigue_pin models quadrant 'all'"
             else:
                 lo, hi = (int(x) for x in self.r.numbers(pw, "range", 2, where, (-1, -1)))
                 if (lo, hi) != (-1, -1) and not (lo <= 1 and hi >= len(points)):
@@ -602,11 +511,11 @@ class _Osim:
             used_wraps[wname] = body
             uses.append(wname)
         lines = ["[[muscles]]", f'name = "{name}"']
-        lines += [f"{k} = {_f(v)}" for k, v in values.items()]
+        lines += [f"{k} = {fmt(v)}" for k, v in values.items()]
         if uses:
             lines.append("wraps = [" + ", ".join(f'{{ name = "{u}", turn = "either" }}' for u in uses) + "]")
         lines.append("points = [")
-        lines += [f'    {{ frame = "{b}", location = [{", ".join(_f(x) for x in loc)}] }},' for b, loc in points]
+        lines += [f'    {{ frame = "{b}", location = [{", ".join(fmt(x) for x in loc)}] }},' for b, loc in points]
         lines += ["]", ""]
         return "\n".join(lines)
 
@@ -618,11 +527,11 @@ def _is_identity(frame: _Frame) -> bool:
 def _joint(name: str, kind: str, parent: str, child: str, R: np.ndarray, p: np.ndarray, axis: np.ndarray | None = None,
            limits: tuple[float, float, float] | None = None) -> list[str]:
     lines = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
-             f'    <origin xyz="{_vec(p)}" rpy="{_vec(_rpy(R))}"/>']
+             f'    <origin xyz="{vec(p)}" rpy="{vec(rpy(R))}"/>']
     if axis is not None and limits is not None:
         lo, hi, effort = limits
-        lines += [f'    <axis xyz="{_vec(axis)}"/>',
-                  f'    <limit lower="{_f(lo)}" upper="{_f(hi)}" effort="{_f(effort)}" velocity="{_f(10 * math.pi)}"/>']
+        lines += [f'    <axis xyz="{vec(axis)}"/>',
+                  f'    <limit lower="{fmt(lo)}" upper="{fmt(hi)}" effort="{fmt(effort)}" velocity="{fmt(10 * math.pi)}"/>']
     lines.append("  </joint>")
     return lines
 
@@ -653,5 +562,5 @@ def read_osim(path: str | Path, ignore_wraps: bool | Iterable[str] = False, effo
         raise ModelError(f"OpenSim model {str(p)!r}: joint effort {effort!r}; expected a finite limit > 0 (N m or N)")
     reader = _Osim(p, ignore_wraps, effort)
     urdf, moved_by = reader.urdf()
-    text, dropped = reader.muscles(moved_by) if muscles else ("", ())
-    return OsimModel(p, reader.name, urdf, text, reader.gravity, dropped)
+    muscle_text, dropped = reader.muscles(moved_by) if muscles else ("", ())
+    return OsimModel(p, reader.name, urdf, muscle_text, reader.gravity, dropped)
