@@ -113,6 +113,85 @@ def test_a_locked_coordinate_is_held_and_a_spline_identity_is_read(tmp_path):
         assert np.allclose(model.gravity_torque([elbow]), full.gravity_torque([0.3, elbow])[1:], atol=1e-12)
 
 
+def _elbow_as_pin_joint(text: str, spin: float = 0.3) -> str:
+    """The elbow's CustomJoint written as a PinJoint: its offset frames turned so that their z
+    axis is the elbow's axis (body-fixed X-Y-Z angles a, b, and ``spin`` about that axis)."""
+    axis = np.array(AXES["elbow"]) / np.linalg.norm(AXES["elbow"])
+    b, a = math.asin(axis[0]), math.atan2(-axis[1], axis[2])  # Rx(a) Ry(b) e_z = axis
+    head, rest = text.split('<CustomJoint name="r_elbow">')
+    joint, tail = rest.split("</CustomJoint>", 1)
+    joint = re.sub(r"\s*<SpatialTransform>.*</SpatialTransform>", "", joint, flags=re.S)
+    joint = joint.replace("<orientation>0 0 0</orientation>", f"<orientation>{a!r} {b!r} {spin!r}</orientation>")
+    return head + '<PinJoint name="r_elbow">' + joint + "</PinJoint>" + tail
+
+
+def test_a_pin_joint_with_turned_offset_frames_is_the_same_elbow(tmp_path):
+    pin_model = ModelSource(osim=osim_variant(tmp_path, _elbow_as_pin_joint), ignore_wraps=True).load()
+    custom = ModelSource(osim=str(ARM26_OSIM), ignore_wraps=True).load()
+    assert "r_elbow_to_r_ulna_radius_hand" in [f.name for f in pin_model.pin_model.frames]  # the child offset's fixed joint
+    rng = np.random.default_rng(2)
+    for q in rng.uniform(custom.q_lower, custom.q_upper, size=(10, 2)):
+        d1, d2 = pin_model.pin_model.createData(), custom.pin_model.createData()
+        M1, M2 = pin.crba(pin_model.pin_model, d1, q), pin.crba(custom.pin_model, d2, q)
+        assert np.allclose(np.triu(M1), np.triu(M2), atol=1e-12)
+        assert np.allclose(pin_model.gravity_torque(q), custom.gravity_torque(q), atol=1e-12)
+        pin.framesForwardKinematics(pin_model.pin_model, d1, q)
+        pin.framesForwardKinematics(custom.pin_model, d2, q)
+        hand = [d.oMf[m.pin_model.getFrameId("r_ulna_radius_hand")].homogeneous for d, m in ((d1, pin_model), (d2, custom))]
+        assert np.allclose(hand[0], hand[1], atol=1e-12)
+
+
+def test_a_custom_joint_of_two_coordinates_is_a_chain(tmp_path):
+    def change(text: str) -> str:  # the shoulder's rotation2 (about y, after rotation1) driven by a coordinate of its own
+        head, rest = text.split('<CustomJoint name="r_shoulder">')
+        coordinate = ('<Coordinate name="r_shoulder_rot"><default_value>0</default_value><range>-1 1</range></Coordinate>\n'
+                      "          </coordinates>")
+        rest = rest.replace("</coordinates>", coordinate, 1)
+        constant = '<coordinates></coordinates>\n              <axis>0 1 0</axis>\n              <Constant name="function">\n' \
+                   '                <value>0</value>\n              </Constant>'
+        driven = ('<coordinates>r_shoulder_rot</coordinates>\n              <axis>0 1 0</axis>\n'
+                  '              <LinearFunction name="function"><coefficients>1 0</coefficients></LinearFunction>')
+        return head + '<CustomJoint name="r_shoulder">' + rest.replace(constant, driven, 1)
+
+    three = ModelSource(osim=osim_variant(tmp_path, change), ignore_wraps=True).load()
+    two = ModelSource(osim=str(ARM26_OSIM), ignore_wraps=True).load()
+    assert three.joint_names == ("r_shoulder_elev", "r_shoulder_rot", "r_elbow_flex")
+    assert np.allclose(three.q_lower, [-1.57079633, -1.0, 0.0]) and np.allclose(three.q_upper, [3.14159265, 1.0, 2.26892803])
+    for q in ([0.3, 0.0, 1.1], [-0.5, 0.0, 2.0]):
+        g3 = three.gravity_torque(q)
+        assert np.allclose(g3[[0, 2]], two.gravity_torque([q[0], q[2]]), atol=1e-12)
+    # rotation2 turns about the y axis already turned by rotation1 (a body-fixed sequence)
+    data = three.pin_model.createData()
+    pin.framesForwardKinematics(three.pin_model, data, np.array([0.4, 0.7, 0.0]))
+    shoulder = np.array(AXES["shoulder"]) / np.linalg.norm(AXES["shoulder"])
+    R = data.oMf[three.pin_model.getFrameId("r_humerus")].rotation
+    base = data.oMf[three.pin_model.getFrameId("base")].rotation
+    expected = pin.AngleAxis(0.4, shoulder).matrix() @ pin.AngleAxis(0.7, np.array([0.0, 1.0, 0.0])).matrix()
+    assert np.allclose(base.T @ R, expected, atol=1e-12)
+
+
+def test_the_parameters_of_each_muscle_class(tmp_path):
+    def change(text: str) -> str:
+        dgf = ("<DeGrooteFregly2016Muscle name=\"BRA\">", "</DeGrooteFregly2016Muscle>", "<passive_fiber_strain_at_one_norm_force>0.5"
+               "</passive_fiber_strain_at_one_norm_force><fiber_damping>0.01</fiber_damping><activation_dynamics_smoothing>10"
+               "</activation_dynamics_smoothing>")
+        millard = ("<Millard2012EquilibriumMuscle name=\"TRIlat\">", "</Millard2012EquilibriumMuscle>",
+                   "<FiberForceLengthCurve><strain_at_one_norm_force>0.7</strain_at_one_norm_force></FiberForceLengthCurve>"
+                   "<fiber_damping>0.1</fiber_damping>")
+        for name, (start, end, extra) in (("BRA", dgf), ("TRIlat", millard)):
+            head, rest = text.split(f'<Thelen2003Muscle name="{name}">')
+            body, tail = rest.split("</Thelen2003Muscle>", 1)
+            body = re.sub(r"<(FmaxTendonStrain|FmaxMuscleStrain|KshapeActive|KshapePassive|Af|Flen)>[^<]*</\1>\s*", "", body)
+            text = head + start + body + extra + end + tail
+        return text
+
+    muscles = read_muscles(read_osim(osim_variant(tmp_path, change), ignore_wraps=True).muscles)
+    bra, trilat = muscles.muscles[muscles.names.index("BRA")], muscles.muscles[muscles.names.index("TRIlat")]
+    assert (bra.passive_strain, bra.damping, bra.activation_smoothing, bra.max_force) == (0.5, 0.01, 10.0, 987.26)
+    assert (trilat.passive_strain, trilat.damping, trilat.optimal_length, trilat.pennation) == (0.7, 0.1, 0.1138, 0.15707963)
+    assert all(m.kind == "degroote" for m in muscles.muscles)
+
+
 # -- the muscles -----------------------------------------------------------------------------------
 
 
