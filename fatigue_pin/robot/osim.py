@@ -155,9 +155,14 @@ class _Osim:
                 raise self.r.error(f"<{body.tag} name={body.get('name')!r}> in the BodySet: expected <Body> elements")
             self.bodies[body.get("name")] = body
         self.frames: dict[str, _Frame] = {b: _Frame(b, np.eye(3), np.zeros(3)) for b in self.bodies}
-        self._offsets: dict[str, ET.Element] = {}
+        # offset frames by the joint or body that holds them, and by name (a name two of them share is ambiguous)
+        self._scopes: dict[str, dict[str, ET.Element]] = {}
+        for owner in [*objects(model, "JointSet"), *self.bodies.values()]:
+            self._scopes.setdefault(owner.get("name"), {}).update(
+                {f.get("name"): f for f in owner.iter("PhysicalOffsetFrame")})
+        self._offsets: dict[str, list[ET.Element]] = {}
         for element in model.iter("PhysicalOffsetFrame"):
-            self._offsets.setdefault(element.get("name"), element)
+            self._offsets.setdefault(element.get("name"), []).append(element)
         gravity = self.r.numbers(model, "gravity", 3, "<Model>", default=(0.0, -9.80665, 0.0))
         self.gravity = tuple(float(x) for x in self.to_world(gravity))
 
@@ -169,14 +174,23 @@ class _Osim:
     # -- frames ------------------------------------------------------------------------------------
 
     def frame(self, reference: str, owner: str, local: dict[str, ET.Element] | None = None, depth: int = 0) -> _Frame:
-        """The frame a socket names (``/bodyset/r_humerus``, ``/ground``, ``r_humerus_offset``)."""
-        name = reference.strip().rstrip("/").split("/")[-1] if reference.strip() else ""
-        if name in (local or {}):
+        """The frame a socket names: a body (``/bodyset/r_humerus``, ``/ground``), an offset frame
+        of the joint at hand (``r_humerus_offset``) or one by its path (``/jointset/r_elbow/r_humerus_offset``)."""
+        parts = [p for p in reference.strip().split("/") if p not in ("", ".", "..")]
+        name = parts[-1] if parts else ""
+        scope = self._scopes.get(parts[-2], {}) if len(parts) >= 2 else {}
+        if name in scope:
+            element = scope[name]
+            local = scope
+        elif name in (local or {}):
             element = local[name]
         elif name in self.bodies:
             return self.frames[name]
+        elif len(self._offsets.get(name, [])) == 1:
+            element = self._offsets[name][0]
         elif name in self._offsets:
-            element = self._offsets[name]
+            raise self.r.error(f"{owner} refers to frame {reference!r}, a name several offset frames have; expected its path "
+                               "(/jointset/<joint>/<frame> or /bodyset/<body>/<frame>)")
         else:
             raise self.r.error(f"{owner} refers to frame {reference!r}, which is no body or offset frame of the model; "
                                f"its bodies are {list(self.bodies)}")

@@ -233,6 +233,20 @@ def test_the_muscles_match_opensim(imported, wraps, tol):
     assert np.all(worst < tol), worst
 
 
+def test_a_path_point_on_an_offset_frame(tmp_path):
+    # BRA-P1 (0.0068, -0.1739, -0.0036) on r_humerus, given on the elbow's parent frame (0.0061, -0.2904, -0.0123) instead
+    on_offset = ("<socket_parent_frame>/jointset/r_elbow/r_humerus_offset</socket_parent_frame>\n"
+                 "                  <location>0.0007 0.1165 0.0087</location>")
+    original = "<socket_parent_frame>/bodyset/r_humerus</socket_parent_frame>\n                  <location>0.0068 -0.1739 -0.0036</location>"
+    moved = read_muscles(read_osim(osim_variant(tmp_path, lambda t: t.replace(original, on_offset)), ignore_wraps=True).muscles)
+    bra = moved.muscles[moved.names.index("BRA")].points[0]
+    assert bra.frame == "r_humerus" and np.allclose(bra.location, (0.0068, -0.1739, -0.0036), atol=1e-15)
+    ambiguous = osim_variant(tmp_path, lambda t: t.replace(original, original.replace("/bodyset/r_humerus<", "r_humerus_offset<")),
+                             "ambiguous.osim")
+    with pytest.raises(ModelError, match=r"path point 'BRA-P1' refers to frame 'r_humerus_offset', a name several offset frames have"):
+        read_osim(ambiguous, ignore_wraps=True)
+
+
 def test_ignore_wraps_by_name(tmp_path):
     named = read_osim(ARM26_OSIM, ignore_wraps=list(ARM26_SHOULDER_WRAPS))
     assert named.muscles == read_osim(ARM26_OSIM, ignore_wraps=True).muscles
