@@ -467,6 +467,11 @@ class ModelSource:
         elif not str(self.urdf):
             raise ModelError("ModelSource.urdf = '': expected a bundled model name, an example-robot-data name or a URDF path "
                              "(or osim, the path of an OpenSim model)")
+        else:
+            for key, default in (("ignore_wraps", False), ("osim_effort", 50.0)):
+                if getattr(self, key) != default:
+                    raise ModelError(f"ModelSource.{key} = {shown(getattr(self, key))}: a setting of an OpenSim model; expected "
+                                     "it with osim, or left out")
 
     def read_osim(self, muscles: bool = True):
         """The :class:`~fatigue_pin.robot.osim.OsimModel` of ``osim`` (ModelError without one);

@@ -357,6 +357,13 @@ def test_study_keys(tmp_path):
         Study.from_dict({**base, "model": {"osim": str(ARM26_OSIM), "muscles": "arm26"}})
     with pytest.raises(StudyError, match=r"^model.ignore_wraps = 3: expected true, false or a list of wrap object names"):
         Study.from_dict({**base, "model": {"osim": str(ARM26_OSIM), "ignore_wraps": 3}})
+    with pytest.raises(StudyError, match=r"^model.osim_effort = 20.0: a setting of an OpenSim model; expected it with osim"):
+        Study.from_dict({**base, "model": {"urdf": "arm26", "osim_effort": 20.0}})
+    with pytest.raises(StudyError, match=r"^model.urdf = '': expected a bundled model name.* \(or osim, the path of an OpenSim model\)"):
+        Study.from_dict({**base, "model": {"muscles": "arm26"}})
+    named = Study.from_dict({**base, "model": {"osim": str(ARM26_OSIM), "ignore_wraps": list(ARM26_SHOULDER_WRAPS), "osim_effort": 20.0}})
+    assert Study.from_toml(named.to_toml()) == named and named.muscles().names == load_muscles("arm26").names
+    assert np.all(named.model().tau_upper == 20.0)
     study = Study.from_dict({**base, "model": {"osim": str(ARM26_OSIM)}})  # the ellipsoids refused when the muscles are read
     with pytest.raises(StudyError, match=r"^model.osim = '.*arm26.osim': OpenSim model .*path wrap 'TRIlonghh' is a WrapEllipsoid"):
         study.muscles()
