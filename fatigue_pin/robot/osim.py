@@ -1,7 +1,7 @@
 """OpenSim models in: an ``.osim`` file read as a URDF text and a muscle file text.
 
 :func:`read_osim` parses the XML of an OpenSim model (format 4.x, ``OpenSimDocument Version``
->= 30000 with ``<ground>``, sockets and ``PhysicalOffsetFrame``) with the standard library and
+>= 40000 with ``<ground>``, sockets and ``PhysicalOffsetFrame``; or 3.x, below) with the standard library and
 writes the model in the project's two forms, which everything downstream already reads:
 
 * a URDF text (:func:`~fatigue_pin.robot.model.load_model`): the root link ``world`` (z up), a
@@ -18,6 +18,10 @@ writes the model in the project's two forms, which everything downstream already
   contraction velocity, activation time constants and passive strain (onto the De Groote-Fregly
   curves with a rigid tendon, ``kind = "degroote"``), its path points on the links, and the
   ``WrapCylinder`` objects its path wraps round (quadrant ``all``: ``turn = "either"``).
+
+The 3.x format (``Version`` 30000: the ground a body of the ``BodySet``, each joint inside its child
+body with ``parent_body``, ``location_in_parent``, ``orientation_in_parent``, ``location``,
+``orientation``, path points on a ``<body>``) is read the same way.
 
 What is read (and what is refused with one :class:`~fatigue_pin.core.errors.ModelError` line naming
 the element, its name and the file):
@@ -61,7 +65,7 @@ from typing import Iterable
 import numpy as np
 
 from fatigue_pin.core.errors import ModelError
-from fatigue_pin.robot.osim_xml import Reader, euler_xyz, flag, fmt, objects, rot, rpy, text, vec
+from fatigue_pin.robot.osim_xml import Frame, Reader, euler_xyz, flag, fmt, is_identity, objects, rot, text, urdf_joint, vec
 
 __all__ = ["OsimModel", "read_osim", "MUSCLE_CLASSES", "JOINT_CLASSES"]
 
@@ -95,15 +99,6 @@ class OsimModel:
     muscles: str = field(repr=False)
     gravity: tuple[float, float, float]
     dropped_wraps: tuple[str, ...] = ()
-
-
-@dataclass
-class _Frame:
-    """A frame fixed on a body: its placement (R, p) in the body's frame."""
-
-    body: str
-    R: np.ndarray
-    p: np.ndarray
 
 
 @dataclass
@@ -145,16 +140,19 @@ class _Osim:
         except ValueError:
             v = 40000
         ground = model.find("ground")
-        if v < 40000 or ground is None:
-            raise self.r.error(f"file format {version} (OpenSim 3.x, joints inside the bodies): expected an OpenSim 4.x model "
-                               "(Version >= 40000, a <ground>); re-save it with OpenSim 4")
-        self.ground = ground.get("name") or "ground"
-        self.bodies: dict[str, ET.Element] = {self.ground: ground}
-        for body in objects(model, "BodySet"):
+        listed = objects(model, "BodySet")
+        # the 3.x format (30000): the ground is the body "ground" of the BodySet, each joint inside its child body
+        self.legacy = ground is None and 30000 <= v < 40000 and any(b.get("name") == "ground" for b in listed)
+        if ground is None and not self.legacy:
+            raise self.r.error(f"file format {version} without a <ground>: expected an OpenSim 4.x model (Version >= 40000) or a "
+                               "3.x one (30000, a body 'ground'); re-save it with OpenSim 4")
+        self.ground = "ground" if self.legacy else ground.get("name") or "ground"
+        self.bodies: dict[str, ET.Element] = {} if self.legacy else {self.ground: ground}
+        for body in listed:
             if body.tag != "Body":
                 raise self.r.error(f"<{body.tag} name={body.get('name')!r}> in the BodySet: expected <Body> elements")
             self.bodies[body.get("name")] = body
-        self.frames: dict[str, _Frame] = {b: _Frame(b, np.eye(3), np.zeros(3)) for b in self.bodies}
+        self.frames: dict[str, Frame] = {b: Frame(b, np.eye(3), np.zeros(3)) for b in self.bodies}
         # offset frames by the joint or body that holds them, and by name (a name two of them share is ambiguous)
         self._scopes: dict[str, dict[str, ET.Element]] = {}
         for owner in [*objects(model, "JointSet"), *self.bodies.values()]:
@@ -173,7 +171,7 @@ class _Osim:
 
     # -- frames ------------------------------------------------------------------------------------
 
-    def frame(self, reference: str, owner: str, local: dict[str, ET.Element] | None = None, depth: int = 0) -> _Frame:
+    def frame(self, reference: str, owner: str, local: dict[str, ET.Element] | None = None, depth: int = 0) -> Frame:
         """The frame a socket names: a body (``/bodyset/r_humerus``, ``/ground``), an offset frame
         of the joint at hand (``r_humerus_offset``) or one by its path (``/jointset/r_elbow/r_humerus_offset``)."""
         parts = [p for p in reference.strip().split("/") if p not in ("", ".", "..")]
@@ -199,7 +197,7 @@ class _Osim:
         parent = self.frame(text(element, "socket_parent"), f"offset frame {name!r}", local, depth + 1)
         R = euler_xyz(self.r.numbers(element, "orientation", 3, f"offset frame {name!r}", (0, 0, 0)))
         p = self.r.numbers(element, "translation", 3, f"offset frame {name!r}", (0, 0, 0))
-        return _Frame(parent.body, parent.R @ R, parent.R @ p + parent.p)
+        return Frame(parent.body, parent.R @ R, parent.R @ p + parent.p)
 
     # -- joints ------------------------------------------------------------------------------------
 
@@ -211,7 +209,7 @@ class _Osim:
                                    "coordinates are independent (expected no enforced constraint)")
 
     def coordinates(self, joint: ET.Element, owner: str) -> dict[str, ET.Element]:
-        holder = joint.find("coordinates")
+        holder = joint.find("coordinates") if joint.find("coordinates") is not None else joint.find("CoordinateSet")
         coords = list(holder) if holder is not None else []
         if holder is not None and holder.find("objects") is not None:
             coords = list(holder.find("objects"))
@@ -284,17 +282,40 @@ class _Osim:
             return x.size >= 2 and x.size == y.size and bool(np.all(np.abs(x - y) <= 1e-12 * np.maximum(1, np.abs(x))))
         return False
 
-    def joints(self) -> list[tuple[ET.Element, _Frame, _Frame, list[_Axis]]]:
+    def joint_frames(self) -> list[tuple[ET.Element, Frame, Frame]]:
+        """Every joint with its parent and child frames: from its sockets (4.x), or from
+        ``parent_body``, ``location_in_parent``, ``orientation_in_parent``, ``location`` and
+        ``orientation`` inside its child body (3.x)."""
         out = []
-        children: dict[str, str] = {}
-        for joint in objects(self.model, "JointSet"):
-            name = joint.get("name")
-            owner = f"{joint.tag} {name!r}"
+        joints = [(j, None) for j in objects(self.model, "JointSet")]
+        if self.legacy:
+            joints = [(j, body) for body, element in self.bodies.items() for holder in element.findall("Joint") for j in holder]
+        for joint, body in joints:
+            owner = f"{joint.tag} {joint.get('name')!r}"
             if joint.tag not in JOINT_CLASSES:
                 raise self.r.error(f"{owner} is of a joint kind fatigue_pin does not read; expected one of {list(JOINT_CLASSES)}")
-            local = {f.get("name"): f for f in joint.iter("PhysicalOffsetFrame")}
-            parent = self.frame(text(joint, "socket_parent_frame"), f"{owner} (socket_parent_frame)", local)
-            child = self.frame(text(joint, "socket_child_frame"), f"{owner} (socket_child_frame)", local)
+            if body is None:
+                local = {f.get("name"): f for f in joint.iter("PhysicalOffsetFrame")}
+                parent = self.frame(text(joint, "socket_parent_frame"), f"{owner} (socket_parent_frame)", local)
+                child = self.frame(text(joint, "socket_child_frame"), f"{owner} (socket_child_frame)", local)
+            else:
+                parent_body = text(joint, "parent_body")
+                if parent_body not in self.bodies:
+                    raise self.r.error(f"{owner} has parent_body {parent_body!r}, which is no body of the model; its bodies are "
+                                       f"{list(self.bodies)}")
+                parent = Frame(parent_body, euler_xyz(self.r.numbers(joint, "orientation_in_parent", 3, owner, (0, 0, 0))),
+                                self.r.numbers(joint, "location_in_parent", 3, owner, (0, 0, 0)))
+                child = Frame(body, euler_xyz(self.r.numbers(joint, "orientation", 3, owner, (0, 0, 0))),
+                               self.r.numbers(joint, "location", 3, owner, (0, 0, 0)))
+            out.append((joint, parent, child))
+        return out
+
+    def joints(self) -> list[tuple[ET.Element, Frame, Frame, list[_Axis]]]:
+        out = []
+        children: dict[str, str] = {}
+        for joint, parent, child in self.joint_frames():
+            name = joint.get("name")
+            owner = f"{joint.tag} {name!r}"
             if child.body == self.ground:
                 raise self.r.error(f"{owner} has the ground as its child; expected the ground as a parent only")
             if child.body in children:
@@ -362,7 +383,10 @@ class _Osim:
         if mass < 0:
             raise self.r.error(f"{owner} has mass {mass:g}; expected a mass >= 0 (kg)")
         com = self.r.numbers(element, "mass_center", 3, owner, (0, 0, 0))
-        ixx, iyy, izz, ixy, ixz, iyz = self.r.numbers(element, "inertia", 6, owner, (0,) * 6)
+        if element.find("inertia") is None and element.find("inertia_xx") is not None:  # 3.x: one element per entry
+            ixx, iyy, izz, ixy, ixz, iyz = (self.r.number(element, f"inertia_{k}", owner, 0.0) for k in ("xx", "yy", "zz", "xy", "xz", "yz"))
+        else:
+            ixx, iyy, izz, ixy, ixz, iyz = self.r.numbers(element, "inertia", 6, owner, (0,) * 6)
         if min(ixx, iyy, izz) < 0:
             raise self.r.error(f"{owner} has inertia {vec([ixx, iyy, izz])} on its diagonal; expected moments >= 0 (kg m^2)")
         if mass == 0 and not any((ixx, iyy, izz, ixy, ixz, iyz)):
@@ -372,7 +396,7 @@ class _Osim:
                 f'      <inertia ixx="{fmt(ixx)}" ixy="{fmt(ixy)}" ixz="{fmt(ixz)}" iyy="{fmt(iyy)}" iyz="{fmt(iyz)}" izz="{fmt(izz)}"/>',
                 "    </inertial>", "  </link>"]
 
-    def chain(self, joint: ET.Element, parent: _Frame, child: _Frame, axes: list[_Axis]) -> list[str]:
+    def chain(self, joint: ET.Element, parent: Frame, child: Frame, axes: list[_Axis]) -> list[str]:
         """URDF joints from the parent body to the child body: origin at the parent offset frame,
         one joint per axis (massless links between), then the child offset frame's inverse."""
         name = joint.get("name")
@@ -380,7 +404,7 @@ class _Osim:
         link, R, p = parent.body, parent.R, parent.p  # the placement still to put in the next origin
         steps = list(axes)
         for k, a in enumerate(steps):
-            last = k == len(steps) - 1 and _is_identity(child)
+            last = k == len(steps) - 1 and is_identity(child)
             target = child.body if last else f"{name}_{a.name}_link"
             if a.locked:  # the motion at the held value folded into the placement
                 M = rot(a.axis, a.value) if a.kind == "revolute" else np.eye(3)
@@ -388,18 +412,18 @@ class _Osim:
                 R, p = R @ M, R @ t + p
                 if not last:
                     continue
-                lines += _joint(f"{name}_{a.name}_locked", "fixed", link, target, R, p)
+                lines += urdf_joint(f"{name}_{a.name}_locked", "fixed", link, target, R, p)
             else:
-                lines += _joint(a.name, a.kind, link, target, R, p, a.axis, (a.lower, a.upper, self.effort))
+                lines += urdf_joint(a.name, a.kind, link, target, R, p, a.axis, (a.lower, a.upper, self.effort))
                 R, p = np.eye(3), np.zeros(3)
             link = target
             if not last:
                 lines.append(f'  <link name="{target}"/>')
-        if not steps or not (_is_identity(child) and link == child.body):
+        if not steps or not (is_identity(child) and link == child.body):
             Ri = child.R.T  # the child body's frame from the child offset frame
             pi = -Ri @ child.p
             kind_name = name if not steps else f"{name}_to_{child.body}"
-            lines += _joint(kind_name, "fixed", link, child.body, R @ Ri, R @ pi + p)
+            lines += urdf_joint(kind_name, "fixed", link, child.body, R @ Ri, R @ pi + p)
         return lines
 
     # -- muscles -----------------------------------------------------------------------------------
@@ -532,22 +556,6 @@ class _Osim:
         lines += [f'    {{ frame = "{b}", location = [{", ".join(fmt(x) for x in loc)}] }},' for b, loc in points]
         lines += ["]", ""]
         return "\n".join(lines)
-
-
-def _is_identity(frame: _Frame) -> bool:
-    return bool(np.allclose(frame.R, np.eye(3), atol=0, rtol=0) and not np.any(frame.p))
-
-
-def _joint(name: str, kind: str, parent: str, child: str, R: np.ndarray, p: np.ndarray, axis: np.ndarray | None = None,
-           limits: tuple[float, float, float] | None = None) -> list[str]:
-    lines = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
-             f'    <origin xyz="{vec(p)}" rpy="{vec(rpy(R))}"/>']
-    if axis is not None and limits is not None:
-        lo, hi, effort = limits
-        lines += [f'    <axis xyz="{vec(axis)}"/>',
-                  f'    <limit lower="{fmt(lo)}" upper="{fmt(hi)}" effort="{fmt(effort)}" velocity="{fmt(10 * math.pi)}"/>']
-    lines.append("  </joint>")
-    return lines
 
 
 def read_osim(path: str | Path, ignore_wraps: bool | Iterable[str] = False, effort: float = 50.0, muscles: bool = True) -> OsimModel:

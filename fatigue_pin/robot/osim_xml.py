@@ -1,11 +1,13 @@
 """Reading an OpenSim model's XML (:mod:`fatigue_pin.robot.osim`): numbers and flags of its
 elements, its sets, the rotations it writes (body-fixed X-Y-Z Euler angles, an angle about an
-axis) and the URDF's (roll, pitch, yaw), and numbers written back at full precision."""
+axis) and the URDF's (roll, pitch, yaw), frames fixed on bodies, and the URDF joints written with
+numbers at full precision."""
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
@@ -13,7 +15,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ModelError
 
-__all__ = ["Reader", "euler_xyz", "flag", "fmt", "objects", "rot", "rpy", "text", "vec"]
+__all__ = ["Frame", "Reader", "euler_xyz", "flag", "fmt", "is_identity", "objects", "rot", "rpy", "text", "urdf_joint", "vec"]
 
 
 class Reader:
@@ -105,3 +107,31 @@ def fmt(x: float) -> str:
 
 def vec(v: Iterable[float]) -> str:
     return " ".join(fmt(x) for x in v)
+
+
+@dataclass
+class Frame:
+    """A frame fixed on a body: its placement (R, p) in the body's frame."""
+
+    body: str
+    R: np.ndarray
+    p: np.ndarray
+
+
+def is_identity(frame: Frame) -> bool:
+    """The frame is its body's frame (no rotation, no offset)."""
+    return bool(np.allclose(frame.R, np.eye(3), atol=0, rtol=0) and not np.any(frame.p))
+
+
+def urdf_joint(name: str, kind: str, parent: str, child: str, R: np.ndarray, p: np.ndarray, axis: np.ndarray | None = None,
+               limits: tuple[float, float, float] | None = None) -> list[str]:
+    """The lines of a URDF ``<joint>``: origin (R, p) in the parent link, and for a revolute or
+    prismatic joint its axis and limits (lower, upper, effort); velocity limit 10 pi."""
+    lines = [f'  <joint name="{name}" type="{kind}">', f'    <parent link="{parent}"/>', f'    <child link="{child}"/>',
+             f'    <origin xyz="{vec(p)}" rpy="{vec(rpy(R))}"/>']
+    if axis is not None and limits is not None:
+        lo, hi, effort = limits
+        lines += [f'    <axis xyz="{vec(axis)}"/>',
+                  f'    <limit lower="{fmt(lo)}" upper="{fmt(hi)}" effort="{fmt(effort)}" velocity="{fmt(10 * math.pi)}"/>']
+    lines.append("  </joint>")
+    return lines

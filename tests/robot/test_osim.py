@@ -192,6 +192,62 @@ def test_the_parameters_of_each_muscle_class(tmp_path):
     assert all(m.kind == "degroote" for m in muscles.muscles)
 
 
+def _arm26_in_the_3x_format() -> str:
+    """tests/data/arm26.osim written in OpenSim's 3.x layout: the ground a body, each joint inside
+    its child body (parent_body, location_in_parent, ...), inertias entry by entry, points on a <body>."""
+    text = ARM26_OSIM.read_text()
+    forces = text[text.index("<ForceSet"):text.index("</ForceSet>") + len("</ForceSet>")]
+    forces = re.sub(r"<socket_parent_frame>/bodyset/([^<]+)</socket_parent_frame>", r"<body>\1</body>", forces)
+    wraps = dict(re.findall(r'<Body name="([^"]+)">.*?(<WrapObjectSet.*?</WrapObjectSet>)', text, flags=re.S))
+
+    def axes(coordinate: str, axis: str) -> str:
+        rows = []
+        for name, vector in zip(("rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"),
+                                (axis, "0 1 0", "0 0 1", "1 0 0", "0 1 0", "0 0 1")):
+            function = ("<LinearFunction><coefficients>1 0</coefficients></LinearFunction>" if name == "rotation1"
+                        else "<Constant><value>0</value></Constant>")
+            rows.append(f'<TransformAxis name="{name}"><function>{function}</function>'
+                        f'<coordinates>{coordinate if name == "rotation1" else ""}</coordinates><axis>{vector}</axis></TransformAxis>')
+        return "<SpatialTransform>" + "".join(rows) + "</SpatialTransform>"
+
+    def body(name, mass, com, inertia, joint):
+        xx, yy, zz = inertia
+        return (f'<Body name="{name}"><mass>{mass}</mass><mass_center>{com}</mass_center><inertia_xx>{xx}</inertia_xx>'
+                f"<inertia_yy>{yy}</inertia_yy><inertia_zz>{zz}</inertia_zz><inertia_xy>0</inertia_xy><inertia_xz>0</inertia_xz>"
+                f"<inertia_yz>0</inertia_yz><Joint>{joint}</Joint>{wraps.get(name, '')}</Body>")
+
+    def custom(name, parent, location, coordinate, axis, limits):
+        return (f'<CustomJoint name="{name}"><parent_body>{parent}</parent_body><location_in_parent>{location}</location_in_parent>'
+                "<orientation_in_parent>0 0 0</orientation_in_parent><location>0 0 0</location><orientation>0 0 0</orientation>"
+                f'<CoordinateSet><objects><Coordinate name="{coordinate}"><range>{limits}</range></Coordinate></objects></CoordinateSet>'
+                f"{axes(coordinate, axis)}</CustomJoint>")
+
+    bodies = [body("ground", 0, "0 0 0", (0, 0, 0), ""),
+              body("base", 0, "0 0 0", (0, 0, 0), '<WeldJoint name="offset"><parent_body>ground</parent_body>'
+                   "<location_in_parent>0 0.8 0</location_in_parent></WeldJoint>"),
+              body("r_humerus", 1.864572, "0 -0.180496 0", (0.01481, 0.004551, 0.013193),
+                   custom("r_shoulder", "base", "-0.017545 -0.007 0.17", "r_shoulder_elev", "-0.05889802 0.0023 0.99826136",
+                          "-1.5707963300000001 3.1415926500000002")),
+              body("r_ulna_radius_hand", 1.534315, "0 -0.181479 0", (0.019281, 0.001571, 0.020062),
+                   custom("r_elbow", "r_humerus", "0.0061 -0.2904 -0.0123", "r_elbow_flex", "0.04940001 0.03660001 0.99810825",
+                          "0 2.2689280300000001"))]
+    return ('<?xml version="1.0" encoding="UTF-8" ?>\n<OpenSimDocument Version="30000"><Model name="arm26">'
+            "<gravity>0 -9.8066 0</gravity><BodySet><objects>" + "".join(bodies) + "</objects></BodySet>" + forces + "</Model></OpenSimDocument>\n")
+
+
+def test_the_3x_format_is_read_as_the_4x_one(tmp_path):
+    path = tmp_path / "arm26_3x.osim"
+    path.write_text(_arm26_in_the_3x_format())
+    old, new = read_osim(path, ignore_wraps=True), read_osim(ARM26_OSIM, ignore_wraps=True)
+    assert old.muscles.splitlines()[1:] == new.muscles.splitlines()[1:] and old.gravity == new.gravity
+    a, b = ModelSource(osim=str(path), ignore_wraps=True).load(), ModelSource(osim=str(ARM26_OSIM), ignore_wraps=True).load()
+    assert a.joint_names == b.joint_names
+    for q in np.random.default_rng(4).uniform(b.q_lower, b.q_upper, size=(5, 2)):
+        assert np.allclose(a.gravity_torque(q), b.gravity_torque(q), atol=1e-14)
+        assert np.allclose(pin.crba(a.pin_model, a.pin_model.createData(), q), pin.crba(b.pin_model, b.pin_model.createData(), q),
+                           atol=1e-14)
+
+
 # -- the muscles -----------------------------------------------------------------------------------
 
 
@@ -323,7 +379,8 @@ _BAD = {
     "other force": (lambda t: t.replace("</objects>\n    </ForceSet>", "  <CoordinateActuator name=\"tau\"/>\n      </objects>\n"
                                         "    </ForceSet>"),
                     r"CoordinateActuator 'tau' is a force fatigue_pin does not read"),
-    "3.x format": (lambda t: t.replace('Version="40000"', 'Version="30000"'), r"file format 30000 \(OpenSim 3.x"),
+    "no ground": (lambda t: t.replace('Version="40000"', 'Version="30000"').replace('<ground name="ground"/>', ""),
+                  r"file format 30000 without a <ground>: expected an OpenSim 4.x model"),
 }
 
 
