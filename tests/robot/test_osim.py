@@ -488,6 +488,14 @@ def test_a_muscle_study_on_the_osim_model_solves_as_on_the_bundled_one(tmp_path)
     stored = rebuild(run)
     assert tuple(stored.robot.pin_model.gravity.linear) == (0.0, 0.0, -9.81)
     assert stored.muscles is not None
+    again = Study.from_file(out, "full/osim")  # what rerun solves: the stored model, not the (deleted) file
+    assert again == study and again.stored == (run.urdf, run.muscles)
+    model = again.model()
+    assert model.joint_names == tuple(JOINTS.values()) and tuple(model.pin_model.gravity.linear) == (0.0, 0.0, -9.81)
+    assert again.problem(model).actuators.half_names[:2] == ("TRIlat", "BRA")
+    assert again.replace({"fatigue.S": 0.0}).stored is not None and again.replace({"model.ignore_wraps": True}).stored is None
+    with pytest.raises(ModelError, match=r"OpenSim model not found: '.*arm26.osim'"):
+        again.replace({"model.ignore_wraps": True}).model()
 
 
 @pytest.mark.slow
