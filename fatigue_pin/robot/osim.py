@@ -118,6 +118,9 @@ class _Axis:
 
 
 class _Osim:
+    """One ``.osim`` file, parsed: its bodies, frames and gravity; :meth:`urdf` and :meth:`muscles`
+    write the project's two forms (module docstring)."""
+
     def __init__(self, path: Path, ignore_wraps: bool | Iterable[str], effort: float) -> None:
         self.r = Reader(path)
         self.path = path

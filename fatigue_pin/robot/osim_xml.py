@@ -28,6 +28,8 @@ class Reader:
         return ModelError(f"OpenSim model {str(self.path)!r}: {what}")
 
     def numbers(self, element: ET.Element | None, tag: str, count: int, owner: str, default: Iterable[float] | None = None) -> np.ndarray:
+        """The ``count`` finite numbers of ``element``'s child ``tag``, shape (count,); ``default``
+        without one (None: a one-line error naming ``owner``, as for a wrong count)."""
         child = element.find(tag) if element is not None else None
         if child is None or child.text is None or not child.text.strip():
             if default is not None:
@@ -52,6 +54,7 @@ class Reader:
         return v
 
     def number(self, element: ET.Element, tag: str, owner: str, default: float | None = None) -> float:
+        """The one finite number of ``element``'s child ``tag`` (:meth:`numbers`)."""
         return float(self.numbers(element, tag, 1, owner, None if default is None else [default])[0])
 
 
