@@ -30,6 +30,8 @@ _API: dict[str, str] = {
     "Payload": "fatigue_pin.robot.model",
     "ModelSource": "fatigue_pin.robot.model",
     "load_model": "fatigue_pin.robot.model",
+    "read_osim": "fatigue_pin.robot.osim",
+    "OsimModel": "fatigue_pin.robot.osim",
     "resolve_model": "fatigue_pin.robot.model",
     # fatigue
     "FatigueModel": "fatigue_pin.fatigue.interface",

@@ -210,3 +210,52 @@ def two_muscle_run(tmp_path_factory):
     out = folder / "muscles.h5"
     run_study(study, out=out, name="full/two_muscles")
     return study, out, read_run(out, "full/two_muscles")
+
+
+# -- OpenSim models (tests/robot/test_osim.py) -----------------------------------------------------
+
+#: tests/data/arm26.osim: arm26 in OpenSim 4.x format, written for the tests (its wrap objects: the
+#: humeral cylinder TRI, the glenoid cylinder TRIlongglen of quadrant x and two ellipsoids).
+ARM26_OSIM = __import__("pathlib").Path(__file__).resolve().parent / "data" / "arm26.osim"
+
+#: Its three shoulder wraps, which fatigue_pin cannot model (ignore_wraps = true leaves them out).
+ARM26_SHOULDER_WRAPS = ("TRIlonghh", "TRIlongglen", "BIClonghh")
+
+
+def opensim_geometry_rows(wraps: str) -> list[dict]:
+    """Rows of tests/data/arm26_opensim_geometry.csv (OpenSim 4.6's lengths and moment arms of
+    arm26's muscles at 7 x 14 poses) with ``wraps`` = ``"TRI"`` (the humeral cylinder on) or ``"none"``."""
+    import csv
+
+    table = ARM26_OSIM.parent / "arm26_opensim_geometry.csv"
+    with open(table) as f:
+        rows = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
+    return [r for r in rows if r["wraps"] == wraps]
+
+
+def osim_variant(folder, change=None, name: str = "arm26.osim") -> str:
+    """tests/data/arm26.osim with ``change(text) -> text`` applied, written in ``folder``; its path."""
+    from pathlib import Path
+
+    text = ARM26_OSIM.read_text()
+    path = Path(folder) / name
+    path.write_text(change(text) if change is not None else text)
+    return str(path)
+
+
+def osim_without_muscles(text: str, keep: tuple[str, ...]) -> str:
+    """An .osim text with only the muscles ``keep`` in its ForceSet."""
+    import re
+
+    def drop(match):
+        return match.group(0) if match.group(1) in keep else ""
+
+    return re.sub(r'\s*<Thelen2003Muscle name="([^"]+)">.*?</Thelen2003Muscle>', drop, text, flags=re.S)
+
+
+def dumbbell_payload(frame: str):
+    """The bundled arm26's 3.6 kg dumbbell (its fixed link ``dumbbell`` on the forearm) as a
+    :class:`~fatigue_pin.robot.model.Payload` on ``frame``: the bar along the forearm's z."""
+    from fatigue_pin.robot.model import Payload
+
+    return Payload(frame, 3.6, (0.0, -0.28, 0.05), (0.04669628, 0.0, 0.0, 0.04669628, 0.0, 0.00370584))

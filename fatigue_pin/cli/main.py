@@ -38,10 +38,26 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from fatigue_pin.robot.model import load_model
+    from fatigue_pin.robot.model import ModelSource, load_model
 
-    model = load_model(args.urdf)
-    print(model.summary())
+    if args.osim is None:
+        if args.ignore_wraps:
+            raise UsageError("--ignore-wraps: expected it with --osim (an OpenSim model)")
+        print(load_model(args.urdf).summary())
+        return 0
+    if args.urdf is not None:
+        raise UsageError("--urdf and --osim: expected one model")
+    source = ModelSource(osim=str(args.osim), ignore_wraps=args.ignore_wraps)
+    imported = source.read_osim()
+    model = source.load()
+    print(model.summary(0.5 * (model.q_lower + model.q_upper)))
+    if imported.muscles:
+        from fatigue_pin.muscles.files import read_muscles
+
+        muscles = read_muscles(imported.muscles, str(imported.path))
+        print(f"  muscles: {', '.join(muscles.names)}; wrap cylinders: {', '.join(w.name for w in muscles.wraps) or 'none'}")
+    if imported.dropped_wraps:
+        print(f"  wrap objects left out (--ignore-wraps): {', '.join(imported.dropped_wraps)}")
     return 0
 
 
@@ -262,6 +278,9 @@ def _add_model_commands(sub: Any) -> None:
     """info, forward."""
     p = sub.add_parser("info", help="print the model summary: joints, masses, bounds, holding torques")
     p.add_argument("--urdf", default=None, help="URDF file (default: bundled arm26)")
+    p.add_argument("--osim", default=None, help="an OpenSim model (.osim) instead: its skeleton and muscles (docs/muscles.md)")
+    p.add_argument("--ignore-wraps", action="store_true",
+                   help="with --osim: leave out the wrap objects fatigue_pin cannot model instead of refusing them")
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("forward", help="forward studies of the 3CC / 3CC-S fatigue model (paper section 2)")

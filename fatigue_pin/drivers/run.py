@@ -474,7 +474,7 @@ def to_run_result(
         cost_terms=ocp.cost_terms,
         cycle_wall_time_s=cycle_wall_time_s,
         windows=windows,
-        urdf=Path(ocp.model.urdf_path).read_text(),
+        urdf=ocp.model.urdf_text or Path(ocp.model.urdf_path).read_text(),
         study=study,
         fatigued=fatigued,
         extras=record.extras,

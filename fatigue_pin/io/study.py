@@ -103,10 +103,16 @@ class Study:
             (``"solver"``, ``"solver.mu_init"``, ...; a study read from a result file stored
             every key), and those :meth:`replace` changed. Not part of the study's value: two
             studies of the same data are equal.
+        stored: for a study of an OpenSim model (``model.osim``) read from a result file, the
+            URDF text and the muscle file text its run stores (written from the model when it
+            ran): :meth:`model` and :meth:`muscles` read them, not the ``.osim`` file, so that
+            ``fatigue-pin rerun`` solves the run's model again, with or without the file. A change
+            of a ``model`` key drops them. None otherwise.
     """
 
     data: dict
     given: frozenset[str] = field(default=frozenset(), compare=False, repr=False)
+    stored: tuple[str, str] | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Study:
@@ -148,10 +154,14 @@ class Study:
         if head.startswith(b"\x89HDF"):
             from fatigue_pin.io.results import read_run
 
-            text = read_run(path, run).study
+            stored_run = read_run(path, run)
+            text = stored_run.study
             if not text:
                 raise StudyError(f"run {run!r} of {str(path)!r} stores no study (it was built in Python, not from a study)")
-            return cls.from_toml(text, f"the study stored in {path}")
+            study = cls.from_toml(text, f"the study stored in {path}")
+            if study.data["model"].get("osim") and stored_run.urdf:  # the model as it was read when the run was solved
+                return cls(study.data, study.given, (stored_run.urdf, stored_run.muscles))
+            return study
         try:
             text = path.read_text()
         except UnicodeDecodeError:
@@ -169,7 +179,8 @@ class Study:
         for dotted, value in changes.items():
             set_key(data, dotted, value)
         changed = {".".join(dotted.split(".")[:n]) for dotted in changes for n in range(1, dotted.count(".") + 2)}
-        return Study(normalise(plain(data)), self.given | changed | _given_keys(plain(changes)))
+        stored = None if "model" in changed else self.stored
+        return Study(normalise(plain(data)), self.given | changed | _given_keys(plain(changes)), stored)
 
     def solver_defaults(self) -> str:
         """One line naming the settings in force that differ from IPOPT's defaults and that the
@@ -201,8 +212,14 @@ class Study:
     # -- building the API objects -------------------------------------------------------------
 
     def model(self):
-        """The :class:`~fatigue_pin.robot.model.RobotModel` of ``[model]``."""
-        return build(SECTIONS["model"], self.data["model"], "model").load()
+        """The :class:`~fatigue_pin.robot.model.RobotModel` of ``[model]`` (of the stored URDF
+        text of an OpenSim model's run, :attr:`stored`)."""
+        source = build(SECTIONS["model"], self.data["model"], "model")
+        if self.stored is not None:
+            from fatigue_pin.robot.model import load_model
+
+            return load_model(Path(source.osim), source.gravity, source.payload, source.locked_joints, text=self.stored[0])
+        return source.load()
 
     def fatigue_spec(self, model):
         """Fatigue models of every half, as :meth:`SignedTorqueActuators.from_model` takes them."""
@@ -277,17 +294,35 @@ class Study:
         return SignedTorqueActuators.from_model(model, self.fatigue_spec(model), actuation)
 
     def muscles(self):
-        """The :class:`~fatigue_pin.muscles.muscle_set.MuscleSet` of ``[model] muscles``."""
-        from fatigue_pin.muscles.files import load_muscles
+        """The :class:`~fatigue_pin.muscles.muscle_set.MuscleSet` of ``[model] muscles``, or of the
+        OpenSim model ``[model] osim`` (its muscles, written as a muscle file's text:
+        :mod:`fatigue_pin.robot.osim`)."""
+        from fatigue_pin.muscles.files import load_muscles, read_muscles
 
-        source = self.data["model"].get("muscles", "")
+        key, source = self._muscle_source()
         if not source:
             raise StudyError('actuators.kind = "muscles": the model has no muscles; expected [model] muscles = a bundled muscle file '
-                             '("arm26") or a muscle file path')
+                             '("arm26") or a muscle file path, or [model] osim = an OpenSim model with muscles')
         try:
+            if key == "model.osim" and self.stored is not None and self.stored[1]:
+                return read_muscles(self.stored[1], f"the muscles stored with the run of {source}")
+            if key == "model.osim":
+                imported = build(SECTIONS["model"], self.data["model"], "model").read_osim()
+                if not imported.muscles:
+                    raise StudyError(f'model.osim = {source!r}: actuators.kind = "muscles", but the OpenSim model has no muscles')
+                return read_muscles(imported.muscles, str(imported.path))
             return load_muscles(source)
+        except StudyError:
+            raise
         except FatiguePinError as exc:
-            raise StudyError(f"model.muscles = {source!r}: {exc}") from None
+            raise StudyError(f"{key} = {source!r}: {exc}") from None
+
+    def _muscle_source(self) -> tuple[str, str]:
+        """The key that gives the muscles (``model.muscles`` or ``model.osim``) and its value."""
+        model = self.data["model"]
+        if model.get("osim"):
+            return "model.osim", str(model["osim"])
+        return "model.muscles", str(model.get("muscles", ""))
 
     def muscle_actuators(self, model):
         """The :class:`~fatigue_pin.ocp.muscle_actuators.MuscleActuators` of ``model``: the muscles
@@ -311,7 +346,7 @@ class Study:
         unknown = [key for key in overrides if key not in names]
         if unknown:
             raise StudyError(f"fatigue.muscles.{unknown[0]}: {unknown[0]!r} is neither a muscle nor a group of "
-                             f"{self.data['model']['muscles']!r}; its muscles are {list(muscles.names)}")
+                             f"{self._muscle_source()[1]!r}; its muscles are {list(muscles.names)}")
         # by muscle or group name, as MuscleActuators resolves them (a muscle's own wins over its group's)
         params = {**{m.name: base for m in muscles.muscles if m.name not in overrides and m.group not in overrides},
                   **{key: _fatigue_model(sub, fat) for key, sub in overrides.items()}}
@@ -330,7 +365,8 @@ class Study:
                 geometry = PolynomialPaths(geometry, tolerance=actuation.path_tolerance)
             return MuscleActuators(model.joint_names, muscles, geometry, params, actuation.coupling, residuals)
         except FatiguePinError as exc:
-            raise StudyError(f"model.muscles = {self.data['model']['muscles']!r}: {exc}") from None
+            key, source = self._muscle_source()
+            raise StudyError(f"{key} = {source!r}: {exc}") from None
 
     def transcription(self):
         """The :class:`~fatigue_pin.ocp.transcription.Transcription` of ``[transcription]``."""

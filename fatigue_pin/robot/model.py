@@ -178,6 +178,9 @@ class RobotModel:
         payload: the :class:`Payload` added to ``pin_model`` (and so to ``aba``, ``rnea``), or None.
         locked_joints: joints of the URDF held fixed (``(name, value)`` pairs, rad or m), removed
             from ``pin_model`` by Pinocchio's ``buildReducedModel``; empty: none.
+        urdf_text: the URDF text the model was built from (runs store it): the file's, or the
+            text written from an OpenSim model (:mod:`fatigue_pin.robot.osim`; ``urdf_path`` is
+            then the ``.osim`` file).
     """
 
     name: str
@@ -194,6 +197,7 @@ class RobotModel:
     rnea: ca.Function = field(repr=False)
     payload: Payload | None = None
     locked_joints: tuple[tuple[str, float], ...] = ()
+    urdf_text: str = field(default="", repr=False, compare=False)
     _frames: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _derivatives: list = field(default_factory=list, init=False, repr=False, compare=False)
 
@@ -301,15 +305,16 @@ class RobotModel:
         masses = self.body_masses()
         units = [self.joint_units(j) for j in range(self.nv)]
         efforts = " and ".join(f"{e}s" for e in dict.fromkeys(u.effort_name for u in units))  # "torques", "forces and torques"
+        w = max([14] + [len(n) + 2 for n in self.joint_names])  # the joint column
         lines = [
             f"model {self.name} ({self.urdf_path})",
             f"  nq = {self.nq}, nv = {self.nv}, total mass {sum(masses.values()):.4f} kg, "
             f"gravity {tuple(float(x) for x in self.pin_model.gravity.linear)} m/s^2",
-            f"  {'joint':<14}{'kind':<11}{'mass (kg)':>10}{'q range':>26}{'|v| max':>18}{'effort range':>22}{'g(q)':>15}",
+            f"  {'joint':<{w}}{'kind':<11}{'mass (kg)':>10}{'q range':>26}{'|v| max':>18}{'effort range':>22}{'g(q)':>15}",
         ]
         for i, (name, u) in enumerate(zip(self.joint_names, units)):
             lines.append(
-                f"  {name:<14}{u.kind:<11}{masses[name]:>10.4f}{f'[{self.q_lower[i]:.4f}, {self.q_upper[i]:.4f}] {u.position:<3}':>26}"
+                f"  {name:<{w}}{u.kind:<11}{masses[name]:>10.4f}{f'[{self.q_lower[i]:.4f}, {self.q_upper[i]:.4f}] {u.position:<3}':>26}"
                 f"{f'{self.v_upper[i]:.4f} {u.velocity:<5}':>18}{f'[{self.tau_lower[i]:.1f}, {self.tau_upper[i]:.1f}] {u.effort:<3}':>22}"
                 f"{f'{g[i]:.4f} {u.effort:<3}':>15}".rstrip()
             )
@@ -417,43 +422,105 @@ class ModelSource:
 
     Attributes:
         urdf: a bundled model (``arm26``), an example-robot-data name (``ur5``, ``panda``) or the
-            path of a URDF file (:func:`resolve_model`).
-        gravity: gravity (3,) in the world frame, m/s^2; None: (0, 0, -9.81).
+            path of a URDF file (:func:`resolve_model`); "" with ``osim``.
+        gravity: gravity (3,) in the world frame, m/s^2; None: the OpenSim model's (``osim``),
+            else (0, 0, -9.81).
         payload: a rigid load fixed to a frame (:class:`Payload`), part of the dynamics; None: none.
         locked_joints: joints held fixed, name -> position (rad or m) within the joint's limits
             (:func:`lock_joints`, e.g. the Panda's fingers); None: none.
         muscles: the model's muscles: a bundled muscle file (``arm26``) or the path of a muscle
             file (docs/muscles.md); "": none. They drive the joints under ``[actuators] kind =
             "muscles"``.
+        osim: the path of an OpenSim model (``.osim``, :mod:`fatigue_pin.robot.osim`): its skeleton
+            and its muscles, instead of ``urdf`` and ``muscles``; "": none.
+        ignore_wraps: with ``osim``, the wrap objects left out of the muscle paths: ``true``, every
+            one fatigue_pin cannot model (ellipsoids, spheres, tori, a cylinder of one quadrant or
+            over part of a path; otherwise each is refused in one line), or a list of wrap names.
+        osim_effort: with ``osim``, the torque (N m) or force (N) limit of every joint (an OpenSim
+            coordinate has none), > 0.
     """
 
-    urdf: str = setting(expected="a bundled model name, an example-robot-data name or a URDF path",
-                        check=lambda v: isinstance(v, (str, Path)) and str(v) != "")
+    urdf: str = setting("", "a bundled model name, an example-robot-data name or a URDF path",
+                        check=lambda v: isinstance(v, (str, Path)))
     gravity: tuple[float, float, float] | None = setting(None, "3 finite numbers (m/s^2, world frame)", _is_vector3)
     payload: Payload | None = setting(None, "a table { frame, mass (kg), com (m), inertia (kg m^2) }",
                                       lambda v: isinstance(v, Payload))
     locked_joints: dict[str, float] | None = setting(None, "a table { joint name = position (rad or m), ... }",
                                                      lambda v: isinstance(v, dict))
     muscles: str = setting("", "a bundled muscle file name (arm26) or a muscle file path", lambda v: isinstance(v, (str, Path)))
+    osim: str = setting("", "the path of an OpenSim model (.osim)", lambda v: isinstance(v, (str, Path)))
+    ignore_wraps: bool | tuple[str, ...] = setting(False, "true, false or a list of wrap object names",
+                                                   lambda v: isinstance(v, bool) or (isinstance(v, (list, tuple))
+                                                                                     and all(isinstance(x, str) for x in v)))
+    osim_effort: float = setting(50.0, "a finite torque or force limit > 0 (N m or N)",
+                                 lambda v: not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) and v > 0)
 
     def __post_init__(self) -> None:
         check_fields(self, ModelError)
+        if isinstance(self.ignore_wraps, list):
+            object.__setattr__(self, "ignore_wraps", tuple(self.ignore_wraps))
+        if str(self.osim):
+            for key in ("urdf", "muscles"):
+                if str(getattr(self, key)):
+                    raise ModelError(f"ModelSource.{key} = {str(getattr(self, key))!r} beside osim = {str(self.osim)!r}: an OpenSim "
+                                     f"model brings its skeleton and its muscles; expected {key} left out")
+        elif not str(self.urdf):
+            raise ModelError("ModelSource.urdf = '': expected a bundled model name, an example-robot-data name or a URDF path "
+                             "(or osim, the path of an OpenSim model)")
+        else:
+            for key, default in (("ignore_wraps", False), ("osim_effort", 50.0)):
+                if getattr(self, key) != default:
+                    raise ModelError(f"ModelSource.{key} = {shown(getattr(self, key))}: a setting of an OpenSim model; expected "
+                                     "it with osim, or left out")
+
+    def read_osim(self, muscles: bool = True):
+        """The :class:`~fatigue_pin.robot.osim.OsimModel` of ``osim`` (ModelError without one);
+        ``muscles`` False: its skeleton only."""
+        from fatigue_pin.robot.osim import read_osim
+
+        if not str(self.osim):
+            raise ModelError("ModelSource.osim = '': no OpenSim model")
+        return read_osim(self.osim, self.ignore_wraps, self.osim_effort, muscles)
 
     def load(self) -> RobotModel:
+        """The RobotModel: of ``urdf`` (:func:`resolve_model`), or of the skeleton of ``osim``."""
+        if str(self.osim):
+            imported = self.read_osim(muscles=False)
+            return load_model(imported.path, self.gravity, self.payload, self.locked_joints, text=imported.urdf)
         return resolve_model(self.urdf, gravity=self.gravity, payload=self.payload, locked_joints=self.locked_joints)
 
 
+def _parse_urdf(text: str, path: Path) -> pin.Model:
+    """Pinocchio's model of a URDF text (``path`` names it), its joints checked (:func:`_validate_joints`)."""
+    with quiet_stderr() as parser_lines:
+        try:
+            model = pin.buildModelFromXML(text)
+        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
+            failure = exc
+        else:
+            failure = None
+    if failure is not None:  # the parser's own lines (urdfdom) say what is wrong; Pinocchio's message does not
+        said = [line.removeprefix("Error:").strip() for line in parser_lines if not line.startswith("at line")]
+        raise ModelError(f"URDF file {str(path)!r} does not parse: {'; '.join(said + [' '.join(str(failure).split())])}") from failure
+    _validate_joints(model, path)
+    return model
+
+
 def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None, payload: Payload | None = None,
-               locked_joints: Mapping[str, float] | None = None) -> RobotModel:
+               locked_joints: Mapping[str, float] | None = None, *, text: str | None = None) -> RobotModel:
     """Load a fixed-base robot from a URDF file and build its CasADi dynamics.
 
     Args:
-        urdf: URDF file; default the bundled arm26 (``urdf/arm26.urdf``).
-        gravity: optional gravity vector (3,) in the world frame, m/s^2 (default (0, 0, -9.81)).
+        urdf: URDF file; default the bundled arm26 (``urdf/arm26.urdf``). With ``text``, the
+            file the text comes from (it names the model in messages and in ``urdf_path``).
+        gravity: optional gravity vector (3,) in the world frame, m/s^2; default the URDF's own
+            top-level ``<gravity xyz="..."/>`` (an OpenSim model's, :mod:`fatigue_pin.robot.osim`),
+            else Pinocchio's (0, 0, -9.81).
         payload: an optional :class:`Payload` fixed to one of the model's frames; it is part of
             ``pin_model`` and of the CasADi dynamics (the URDF file is left as it is).
         locked_joints: joints held fixed, name -> position (rad or m) within the joint's limits
             (:func:`lock_joints`; e.g. the Panda's fingers): they leave q, v and tau.
+        text: the URDF's text, instead of reading the file ``urdf``.
 
     Returns:
         A :class:`RobotModel`. Bounds come from the URDF ``<limit>`` tags; a missing or infinite
@@ -463,24 +530,18 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         ModelError: the file is missing or does not parse, the base floats, a joint is unsupported,
             a joint has no effort limit, or a joint moves no mass (zero mass and inertia).
     """
-    path = _urdf_path(urdf)
-    check_urdf_text(path, locked_joints or {})
-    with quiet_stderr() as parser_lines:
-        try:
-            model = pin.buildModelFromUrdf(str(path))
-        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with the parser's message
-            failure = exc
-        else:
-            failure = None
-    if failure is not None:  # the parser's own lines (urdfdom) say what is wrong; Pinocchio's message does not
-        said = [line.removeprefix("Error:").strip() for line in parser_lines if not line.startswith("at line")]
-        raise ModelError(f"URDF file {str(path)!r} does not parse: {'; '.join(said + [' '.join(str(failure).split())])}") from failure
-    _validate_joints(model, path)
+    path = _urdf_path(urdf) if text is None else Path(urdf if urdf is not None else "model.urdf")
+    own_gravity = check_urdf_text(path, locked_joints or {}, text)
+    if text is None:
+        text = path.read_text()
+    model = _parse_urdf(text, path)
     if locked_joints:
         model = lock_joints(model, dict(locked_joints), path)
     locked = tuple((str(k), float(v)) for k, v in (locked_joints or {}).items())
     if model.nv == 0:
         raise ModelError(f"{path}: the model has no movable joint")
+    if gravity is None and own_gravity is not None:
+        gravity = np.array(own_gravity)
     if gravity is not None:
         g = np.asarray(gravity, dtype=float).reshape(-1)
         if g.size != 3:
@@ -519,4 +580,5 @@ def load_model(urdf: str | Path | None = None, gravity: np.ndarray | None = None
         rnea=rnea,
         payload=payload,
         locked_joints=locked,
+        urdf_text=text,
     )

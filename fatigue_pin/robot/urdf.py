@@ -30,7 +30,7 @@ from pathlib import Path
 from fatigue_pin.core.errors import ModelError
 from fatigue_pin.core.streams import captured
 
-__all__ = ["check_urdf_text", "quiet_stderr"]
+__all__ = ["check_urdf_text", "quiet_stderr", "urdf_gravity"]
 
 #: Attributes holding numbers: element tag -> {attribute: count of numbers}.
 _NUMBERS = {
@@ -132,18 +132,40 @@ def _check_link(path: Path, link: ET.Element) -> None:
                                  "expected moments of inertia >= 0 (kg m^2) in its <inertia>")
 
 
-def check_urdf_text(path: Path, locked: Iterable[str] = ()) -> None:
+def urdf_gravity(root: ET.Element, path: Path) -> tuple[float, float, float] | None:
+    """The gravity a URDF carries in a top-level ``<gravity xyz="x y z"/>`` element (m/s^2, world
+    frame; a fatigue_pin extension, written by the OpenSim import, :mod:`fatigue_pin.robot.osim`),
+    or None without one. ModelError for an ``xyz`` that is not three finite numbers."""
+    element = root.find("gravity")
+    if element is None:
+        return None
+    text = element.get("xyz", "")
+    try:
+        values = [float(v) for v in text.split()]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise _bad(path, f"<gravity xyz={text!r}>: expected 3 finite numbers separated by spaces (m/s^2)")
+    return (values[0], values[1], values[2])
+
+
+def check_urdf_text(path: Path, locked: Iterable[str] = (), text: str | None = None) -> tuple[float, float, float] | None:
     """Refuse, with one line naming the element and the value, a URDF that the URDF parser would
     reject or that fatigue_pin cannot model (see the module docstring), including a ``<mimic>``
     joint that is not among the ``locked`` joints: a mimic joint is driven by another joint, not by
     an actuator of its own, and fatigue_pin gives every joint a plus and a minus actuator half, so
     loading it as an independent joint would be a different robot.
 
+    ``text``: the URDF's text, when it is not read from ``path`` (``path`` then only names it).
+
+    Returns:
+        the gravity the URDF carries (:func:`urdf_gravity`), or None.
+
     Raises:
         ModelError: the first problem found.
     """
     try:
-        root = ET.parse(path).getroot()
+        root = ET.fromstring(text) if text is not None else ET.parse(path).getroot()
     except ET.ParseError as exc:
         raise _bad(path, str(exc)) from None
     except OSError as exc:
@@ -160,6 +182,7 @@ def check_urdf_text(path: Path, locked: Iterable[str] = ()) -> None:
     for joint in joints:
         _check_joint(path, joint, names)
     _check_mimic(path, joints, set(locked))
+    return urdf_gravity(root, path)
 
 
 def _check_mimic(path: Path, joints: list[ET.Element], locked: set[str]) -> None:

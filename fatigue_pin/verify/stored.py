@@ -263,7 +263,8 @@ def _robot(run: RunResult, study, notes: list[str]):
         if not run.urdf:
             if study is None:
                 raise ResultFileError(f"run {run.name!r} stores neither a URDF text nor a study; cannot rebuild its model")
-            notes.append(f"no URDF text stored: the model is the stored study's model.urdf = {study.data['model']['urdf']!r}")
+            notes.append(f"no URDF text stored: the model is the stored study's model.urdf = "
+                         f"{study.data['model']['urdf'] or study.data['model'].get('osim')!r}")
             robot = study.model()
         else:
             with tempfile.TemporaryDirectory(prefix="fatigue_pin_verify_") as tmp:
@@ -273,7 +274,9 @@ def _robot(run: RunResult, study, notes: list[str]):
                     notes.append("no study stored: the model is the stored URDF with Pinocchio's gravity and no payload")
                     robot = load_model(path)
                 else:
-                    robot = study.replace({"model.urdf": str(path)}).model()
+                    # an OpenSim model's URDF text carries its gravity; its muscles are the stored muscle file's
+                    osim = {"model.osim": "", "model.ignore_wraps": False} if study.data["model"].get("osim") else {}
+                    robot = study.replace({"model.urdf": str(path), **osim}).model()
     except ResultFileError:
         raise
     except FatiguePinError as exc:

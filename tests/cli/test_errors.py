@@ -71,6 +71,11 @@ class Env:
 
         return self.write(name, change(bundled_urdf().read_text()))
 
+    def osim(self, change: Callable[[str], str] | None = None, name: str = "arm26.osim") -> str:
+        """tests/data/arm26.osim, with ``change(text) -> text`` applied, written in the case's folder."""
+        text = (Path(__file__).resolve().parents[1] / "data" / "arm26.osim").read_text()
+        return self.write(name, change(text) if change is not None else text)
+
     def sweep(self) -> str:
         """A sweep file of two jobs over the small curl."""
         self.write("base.toml", to_toml(BASE))
@@ -161,6 +166,18 @@ def _delete(*keys):
     return mutate
 
 
+def _osim_muscles(path: str, ignore_wraps: bool = False):
+    """The base study driven by the muscles of the OpenSim model ``path`` (its skeleton too)."""
+    def mutate(data: dict) -> None:
+        data["model"] = {"osim": path, "ignore_wraps": ignore_wraps}
+        data["actuators"] = {"kind": "muscles", "residuals": 50.0}
+        data["task"]["targets"] = [{**t, "joint": "r_elbow_flex", "value": min(t["value"], 2.0)} for t in data["task"]["targets"]]
+        data["costs"] = {"activation": 1.0, "residual": 1.0}
+        data.get("fatigue", {}).pop("joints", None)
+
+    return mutate
+
+
 def _sliding(window: int, max_cycles: int):
     def mutate(data: dict) -> None:
         data["horizon"].update(kind="sliding", cycles=window, max_cycles=max_cycles)
@@ -200,7 +217,7 @@ def _run(study: Callable[[Env], str]) -> Callable[[Env], list[str]]:
 
 
 CLI, PATHS, URDF, STUDY, API, FILES = "command line", "paths", "URDF", "study file", "Python API", "result files"
-FATIGUE, SWEEP = "fatigue data", "sweeps"
+FATIGUE, SWEEP, OSIM = "fatigue data", "sweeps", "OpenSim models"
 
 CASES: list[Case] = [
     # -- the command line ----------------------------------------------------------------------
@@ -313,6 +330,50 @@ CASES: list[Case] = [
     Case("urdf-unknown-joint-type", URDF, "a joint of an unknown type (the parser's own message, on one line)",
          r"does not parse: Joint \[elbow\] has no known type \[weird\]",
          lambda e: ["info", "--urdf", e.urdf(lambda t: t.replace('name="elbow" type="revolute"', 'name="elbow" type="weird"'))]),
+    # -- OpenSim models ----------------------------------------------------------------------------
+    Case("osim-ellipsoid-wrap", OSIM, "a muscle study on an OpenSim model whose muscle wraps round an ellipsoid, without `ignore_wraps`",
+         r"model.osim = '.*arm26.osim': OpenSim model .*Thelen2003Muscle 'TRIlong', path wrap 'TRIlonghh' is a WrapEllipsoid",
+         _run(lambda e: e.study(_osim_muscles(e.osim())))),
+    Case("osim-joint-kind", OSIM, "`info --osim` a model with a `BallJoint`",
+         r"BallJoint 'r_elbow' is of a joint kind fatigue_pin does not read",
+         lambda e: ["info", "--osim", e.osim(lambda t: t.replace('<CustomJoint name="r_elbow">', '<BallJoint name="r_elbow">')
+                                             .replace("</SpatialTransform>\n        </CustomJoint>\n      </objects>",
+                                                      "</SpatialTransform>\n        </BallJoint>\n      </objects>"))]),
+    Case("osim-coupled", OSIM, "`info --osim` a `CustomJoint` axis driven by two coordinates",
+         r"CustomJoint 'r_elbow', transform axis 'rotation1' is driven by the coordinates \['r_elbow_flex', 'r_shoulder_elev'\] together",
+         lambda e: ["info", "--osim", e.osim(lambda t: t.replace("<coordinates>r_elbow_flex</coordinates>",
+                                                                 "<coordinates>r_elbow_flex r_shoulder_elev</coordinates>"))]),
+    Case("osim-moving-point", OSIM, "`info --osim` a muscle with a `MovingPathPoint`",
+         r"Thelen2003Muscle 'BRA', path point 'BRA-P2' is a MovingPathPoint; expected fixed PathPoints",
+         lambda e: ["info", "--osim", e.osim(lambda t: re.sub(r'<PathPoint name="BRA-P2">(.*?)</PathPoint>',
+                                                              r'<MovingPathPoint name="BRA-P2">\1</MovingPathPoint>', t, flags=re.S)),
+                    "--ignore-wraps"]),
+    Case("osim-unknown-body", OSIM, "`info --osim` a path point on a body the model does not have",
+         r"path point 'BRA-P1' refers to frame '/bodyset/scapula', which is no body or offset frame of the model",
+         lambda e: ["info", "--osim", e.osim(lambda t: t.replace("/bodyset/r_humerus</socket_parent_frame>\n"
+                                                                 "                  <location>0.0068",
+                                                                 "/bodyset/scapula</socket_parent_frame>\n"
+                                                                 "                  <location>0.0068")), "--ignore-wraps"]),
+    Case("osim-max-force", OSIM, "a muscle study on an OpenSim model with `max_isometric_force` 0 (or < 0)",
+         r"Thelen2003Muscle 'BRA' has max_isometric_force 0; expected a force > 0 \(N\)",
+         _run(lambda e: e.study(_osim_muscles(e.osim(lambda t: t.replace("<max_isometric_force>987.26", "<max_isometric_force>0")),
+                                              ignore_wraps=True)))),
+    Case("osim-optimal-length", OSIM, "`info --osim` a muscle with `optimal_fiber_length` 0 (or < 0)",
+         r"Thelen2003Muscle 'BRA' has optimal_fiber_length 0; expected a length > 0 \(m\)",
+         lambda e: ["info", "--osim", e.osim(lambda t: t.replace("<optimal_fiber_length>0.0858", "<optimal_fiber_length>0")),
+                    "--ignore-wraps"]),
+    Case("osim-no-joint-crossed", OSIM, "`info --osim` a muscle whose points are all on one body",
+         r"Thelen2003Muscle 'BRA' crosses no joint: its points are all on \['r_humerus'\]",
+         lambda e: ["info", "--osim", e.osim(lambda t: t.replace("/bodyset/r_ulna_radius_hand</socket_parent_frame>\n"
+                                                                 "                  <location>-0.0032",
+                                                                 "/bodyset/r_humerus</socket_parent_frame>\n"
+                                                                 "                  <location>-0.0032")), "--ignore-wraps"]),
+    Case("osim-wrap-radius", OSIM, "`info --osim` a wrap cylinder of radius 0 (or < 0)",
+         r"WrapCylinder 'TRI' on body 'r_humerus' has radius 0; expected a cylinder radius > 0 \(m\)",
+         lambda e: ["info", "--osim", e.osim(lambda t: t.replace("<radius>0.016</radius>", "<radius>0</radius>")), "--ignore-wraps"]),
+    Case("osim-with-urdf", OSIM, "a study with both `model.osim` and `model.urdf`",
+         r"model.urdf = 'arm26' beside osim = '.*arm26.osim': an OpenSim model brings its skeleton and its muscles",
+         _run(lambda e: e.study(_set("model", "osim", e.osim())))),
     # -- study files -------------------------------------------------------------------------------
     Case("study-not-toml", STUDY, "a study file that is not TOML", r"is not valid TOML",
          lambda e: ["run", e.write("bad.toml", "name = \n[model"), "--out", str(e.existing)]),

@@ -3,9 +3,7 @@ experiments/opensim_arm26_geometry.py), and moment arms and torques against fini
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,14 +12,7 @@ from fatigue_pin.core.errors import ModelError, ParameterError
 from fatigue_pin.muscles.geometry import MuscleGeometry
 from fatigue_pin.muscles.muscle import PathPoint
 from fatigue_pin.muscles.muscle_set import MuscleSet
-
-TABLE = Path(__file__).resolve().parents[1] / "data" / "arm26_opensim_geometry.csv"
-
-
-def opensim_rows(wraps: str) -> list[dict]:
-    with open(TABLE) as f:
-        rows = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
-    return [r for r in rows if r["wraps"] == wraps]
+from conftest import opensim_geometry_rows as opensim_rows
 
 
 @pytest.mark.parametrize("wraps, tol_length, tol_arm", [("none", 1e-6, 1e-6), ("TRI", 5e-4, 5e-4)])
