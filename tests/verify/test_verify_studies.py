@@ -40,6 +40,11 @@ SUBSTEP = 0.0125
 #: bioptim's pendulum (LD = 100): its own 30 intervals with 20 substeps (docs/porting.md; with its
 #: 5, RK4's truncation leaves gaps above the tolerances).
 GRID = {"curl_physiological.toml": (50, 8), "bioptim_pendulum_xia.toml": (30, 20)}
+#: Studies whose short result takes minutes (uncompiled muscles on the grid verify passes: 10
+#: intervals with 8 substeps of 0.0125 s, 35-90 s of solve and 15-60 s of verify; with 4 substeps
+#: of 0.025 s the gaps fail: qdot 6.8e-3 rad/s, fatigue 1.5e-5): run with ``-m slow``. The default
+#: suite verifies a muscle run on polynomial paths in tests/verify/test_verify_muscles.py.
+SLOW = {"curl_muscles_sliding.toml"}
 #: Models whose studies are verified on their shipped grid (intervals per cycle and substeps as
 #: the study file has them): the UR5's. Measured on one window of one cycle, uncompiled, with
 #: verify's default tolerances: ur5_carry (and ur5_mpc's plan), 20 intervals of 0.1 s with 4
@@ -137,7 +142,8 @@ def solved(tmp_path_factory):
     return solve
 
 
-@pytest.mark.parametrize("source", SOURCES, ids=[n if j is None else f"{n}[job {j}]" for n, j in SOURCES])
+@pytest.mark.parametrize("source", [pytest.param(s, marks=pytest.mark.slow) if s[0] in SLOW else s for s in SOURCES],
+                         ids=[n if j is None else f"{n}[job {j}]" for n, j in SOURCES])
 def test_verify_passes_on_a_short_result_of_every_study(source, solved, capsys):
     out = solved(source)
     runs = list_runs(out)
