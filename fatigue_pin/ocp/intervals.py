@@ -236,7 +236,13 @@ class IntervalFunctions:
         # uncompiled, the bundled directions are five times faster in CasADi's virtual machine
         f = ca.Function("f_active", [z, us, ps], [ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps))],
                         {"max_num_dir": 1} if one_direction else {})
-        z_next = rk4(f, ca.vertcat(y, m), (u, p), h, substeps)
+        z0, dt = ca.vertcat(y, m), h * substeps
+        z_next = rk4(f, z0, (u, p), h, substeps)
+        # the approximate Hessians' flows (solver.hessian): one RK4 step, one explicit Euler step
+        self.F_rb_active_one_step = ca.Function("F_rb_active_one_step", [y, m, u, p], [rk4(f, z0, (u, p), dt, 1)[:ny]],
+                                                ["y", "m", "u", "p"], ["y_next"])
+        self.F_rb_active_euler_step = ca.Function("F_rb_active_euler_step", [y, m, u, p], [(z0 + dt * f(z0, u, p))[:ny]],
+                                                  ["y", "m", "u", "p"], ["y_next"])
         return ca.Function("F_rb_active", [y, m, u, p], [z_next[:ny]], ["y", "m", "u", "p"], ["y_next"])
 
     def rigid_body_step(self, y: ca.MX, m: ca.MX, u: ca.MX, p: ca.MX, T: ca.MX | None = None,
@@ -268,7 +274,9 @@ class IntervalFunctions:
         (:attr:`SolverOptions.dynamics_jacobian <fatigue_pin.ocp.solver.SolverOptions.dynamics_jacobian>`):
         ``analytical`` takes the rigid body's Jacobian block from :meth:`analytical_rb_jacobian`
         where the model has one and both y and tau are differentiated."""
-        approximations = {"one-step": self.F_rb_one_step, "euler-step": self.F_rb_euler_step}
+        approximations = {"F_rb": {"one-step": self.F_rb_one_step, "euler-step": self.F_rb_euler_step}}
+        if self.F_rb_active is not None:
+            approximations["F_rb_active"] = {"one-step": self.F_rb_active_one_step, "euler-step": self.F_rb_active_euler_step}
         for f in self.library_functions():
             if f.name() not in diffs:
                 continue
@@ -278,7 +286,7 @@ class IntervalFunctions:
             # gauss-newton drops the rigid body's second derivatives, with a state-dependent torque too
             exact = not (f.name() in ("F_rb", "F_rb_active") and hessian == "gauss-newton")
             self.blocks[f.name()] = block_functions(f, diff, hessian=exact,
-                                                    hessian_of=approximations.get(hessian) if rb else None, jacobian=analytical)
+                                                    hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=analytical)
         self.blocks_hessian = hessian
 
     def block_functions(self) -> list[ca.Function]:

@@ -157,7 +157,8 @@ class SolverOptions:
             blocks, docs/ocp.md "Robot-scale speed"). ``one-step``: the rigid body's second
             derivatives from one RK4 step over each interval instead of ``substeps`` steps (an
             approximation of the same flow's curvature; the constraints, their Jacobian and so
-            the optimum stay those of the transcription). ``euler-step``: the same from one
+            the optimum stay those of the transcription; with a torque that follows the state,
+            one RK4 step of the rigid body with it, the muscles' included). ``euler-step``: the same from one
             explicit Euler step, ``dt`` times the Hessian of ABA (a tenth of the cost of
             ``one-step``'s on the UR5, docs/ocp.md "Robot-scale speed").
         dynamics_jacobian: how the Jacobian of the rigid body's RK4 (the derivative block

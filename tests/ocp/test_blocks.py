@@ -208,3 +208,35 @@ def test_euler_step_hessian_block_is_dt_times_the_hessian_of_aba(arm26):
     wv = np.r_[ocp.initial_state()[:4] + 0.1 * rng.normal(size=4), rng.normal(size=2)]
     mv = rng.normal(size=4)
     assert np.allclose(np.asarray(ca.densify(fn.blocks["F_rb"].hess(wv, mv))), np.tril(np.asarray(ref(wv, mv))), rtol=1e-10, atol=1e-12)
+
+
+def test_one_step_hessian_of_a_torque_that_follows_the_state(tmp_path):
+    """Muscles (their torque follows q, qdot): the ``one-step`` Hessian block of ``F_rb_active`` is
+    CasADi's Hessian of mu' (one RK4 step over the interval) at a random point, and close to the
+    exact block of the study's substeps."""
+    from conftest import muscle_curl, two_muscle_file
+
+    study = muscle_curl(two_muscle_file(tmp_path), **{"task.intervals_per_cycle": 20})
+    solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, hessian="one-step")
+    ocp = Ocp(study.problem(), 1, study.transcription(), solver)
+    fn = ocp.functions
+    pair = fn.blocks["F_rb_active"]
+    one, exact = fn.F_rb_active_one_step, fn.F_rb_active
+    sizes = [one.sparsity_in(i).numel() for i in pair.diff]
+    w, mu = ca.MX.sym("w", sum(sizes)), ca.MX.sym("mu", 4)
+    others = [ca.MX.sym(one.name_in(i), one.sparsity_in(i)) for i in range(one.n_in()) if i not in pair.diff]
+    pieces, rest, args = iter(ca.vertsplit(w, list(np.cumsum([0, *sizes])))), iter(others), []
+    for i in range(one.n_in()):
+        args.append(next(pieces) if i in pair.diff else next(rest))
+    H = {name: ca.Function(name, [w, *others, mu], [ca.hessian(ca.dot(mu, f(*args)), w)[0]]) for name, f in
+         (("one", one), ("exact", exact))}
+    rng = np.random.default_rng(5)
+    assert pair.diff == (0, 1, 2)  # y, the fatigue states, the controls; the fatigue parameters are not differentiated
+    x0 = ocp.initial_state()
+    wv = np.r_[x0[:4] + 0.1 * rng.normal(size=4), x0[4:4 + sizes[1]], rng.uniform(0, 1, sizes[2])]
+    ov = [rng.uniform(0.5, 2.0, o.numel()) for o in others]
+    mv = rng.normal(size=4)
+    mine = np.asarray(ca.densify(pair.hess(wv, *ov, mv)))
+    h1, hN = np.asarray(H["one"](wv, *ov, mv)), np.asarray(H["exact"](wv, *ov, mv))
+    assert np.allclose(mine, np.tril(h1), rtol=1e-9, atol=1e-10)
+    assert 0 < np.abs(h1 - hN).max() < 0.2 * np.abs(hN).max()
