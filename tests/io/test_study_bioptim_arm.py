@@ -30,6 +30,8 @@ def study() -> Study:
 
 
 def test_the_study_builds_bioptims_arm(study):
+    assert Study.from_toml(study.to_toml()) == study
+    assert study.data["task"]["targets"][0]["axes"] == ["x", "z"]  # bioptim's X and Y, in the z-up world
     model = study.model()
     assert model.joint_names == ("shoulder", "elbow") and model.payload.mass == 3.0
     # bioptim's holding torques of arm26_constant at the start and at its optimum's end (N m)

@@ -88,6 +88,13 @@ def test_a_frame_target_on_some_axes_holds_only_those(model):
     for bad in ([], ["x", "x"], ["w"], "x"):
         with pytest.raises(TaskError, match="axes"):
             FrameTarget("tool0", p, axes=bad)
+    # inverse kinematics holds the named axes only: a point 10 m away in y is reached in x and z
+    from fatigue_pin.robot.ik import solve_ik
+
+    far = FrameTarget("tool0", p + [0.05, 10.0, -0.05], axes=["x", "z"])
+    res = solve_ik(model, [far], q0=q)
+    assert res.success and far.distance(frame_placement(model.pin_model, "tool0", res.q).translation) < 1e-6
+    far.check(model)  # within reach on its axes
 
 
 def _error(study: Study, changes: dict) -> str:
