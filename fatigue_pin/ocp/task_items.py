@@ -223,7 +223,8 @@ class FrameTarget:
     cycle, within ``tolerance`` (m): a ball of that radius (``shape = "ball"``) or a box of that
     half-width (``"box"``). A zero tolerance pins the point (an equality row per axis).
     ``axes`` names the world axes held (``"x"``, ``"y"``, ``"z"``; default all three): with fewer,
-    the point is held on those coordinates only, e.g. ``["x", "z"]`` leaves its ``y`` free; the ball and the box are then of those axes.
+    the point is held on those coordinates only (``["x", "z"]`` leaves its ``y`` free), and the
+    ball or the box is of those axes.
 
     It becomes a :class:`StateConstraint` (:meth:`constraint`) on the frame position from
     Pinocchio's kinematics on CasADi symbols (:meth:`RobotModel.frame_position`). The ball is the
