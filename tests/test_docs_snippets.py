@@ -218,6 +218,8 @@ AFTER: dict[tuple[str, str], list[str]] = {
     ("porting.md", "fatigue-pin run studies/bioptim_pendulum_xia.toml --out pendulum.h5"): ["--set", "transcription.substeps=4"],
     ("porting.md", "fatigue-pin run studies/bioptim_pendulum_xia.toml --out fine.h5 --set transcription.substeps=20"):
         ["--set", "transcription.substeps=20"],
+    # the static arm's Gauss-Newton Hessian is a derivative block: uncompiled, the blocks evaluated by CasADi
+    ("porting.md", "fatigue-pin run studies/bioptim_static_arm_xia.toml --out arm.h5"): ["--set", "solver.derivative_blocks=true"],
     # the UR5 carry's sliding run as one window of one cycle (the page's later commands read its run)
     ("robot-study.md", "fatigue-pin run studies/ur5_carry.toml --out carry.h5"):
         ["--set", "horizon.cycles=1", "--set", "horizon.max_cycles=1"],

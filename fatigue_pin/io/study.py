@@ -329,7 +329,11 @@ class Study:
         of ``[model] muscles`` on its frames (:class:`~fatigue_pin.muscles.geometry.MuscleGeometry`),
         each with the fatigue model of ``[fatigue]`` (or of ``[fatigue.muscles.<muscle or group>]``),
         and residual torques of +-``actuators.residuals`` N m on every joint but the passive ones,
-        fatigable with ``actuators.residual_fatigue``."""
+        fatigable with ``actuators.residual_fatigue``. Under the ``active`` coupling, residual
+        torques that do not tire deliver their control (coupling ``observed``): only the muscles'
+        force follows their active fraction."""
+        import dataclasses
+
         import numpy as np
 
         from fatigue_pin.muscles.geometry import MuscleGeometry
@@ -357,8 +361,11 @@ class Study:
         if actuation.residuals > 0:
             n = len(model.joint_names)
             spec = self.fatigue_spec(model) if actuation.residual_fatigue else base.with_(F=0.0, R=0.0)
+            own = actuation  # torques that never tire deliver their control beside 'active' muscles
+            if actuation.coupling == "active" and not actuation.residual_fatigue:
+                own = dataclasses.replace(actuation, coupling="observed")
             residuals = SignedTorqueActuators.from_limits(model.joint_names, -actuation.residuals * np.ones(n),
-                                                          actuation.residuals * np.ones(n), spec, actuation)
+                                                          actuation.residuals * np.ones(n), spec, own)
         try:
             geometry = MuscleGeometry(model.pin_model, muscles)
             if actuation.paths == "polynomial":

@@ -3,8 +3,9 @@
 A muscle file has ``[[wraps]]`` tables (``name``, ``frame``, ``translation``, ``rotation``,
 ``radius``: the fields of :class:`~fatigue_pin.muscles.wraps.CylinderWrap`) and ``[[muscles]]``
 tables (the fields of :class:`~fatigue_pin.muscles.muscle.Muscle`, with ``points`` a list of
-``{ frame = "...", location = [x, y, z] }``). ``urdf/arm26.muscles.toml`` is the bundled one:
-:func:`load_muscles` ``("arm26")``.
+``{ frame = "...", location = [x, y, z] }``). The bundled ones: ``urdf/arm26.muscles.toml``
+(:func:`load_muscles` ``("arm26")``) and ``urdf/arm26_idealized.muscles.toml`` (the same muscles
+idealised on their via-point paths, ``"arm26_idealized"``).
 """
 
 from __future__ import annotations
@@ -25,10 +26,10 @@ _SUFFIX = ".muscles.toml"
 
 
 def bundled_muscles(name: str) -> Path:
-    """Path of a muscle file shipped with fatigue_pin (``arm26``), beside the bundled URDFs."""
+    """Path of a muscle file shipped with fatigue_pin (``arm26``, ``arm26_idealized``), beside the bundled URDFs."""
     path = bundled_file(f"{name}{_SUFFIX}")
     if path is None:
-        raise ModelError(f"bundled muscle file {name!r} not found; the bundled ones are: arm26")
+        raise ModelError(f"bundled muscle file {name!r} not found; the bundled ones are: arm26, arm26_idealized")
     return path
 
 

@@ -66,7 +66,9 @@ class MuscleActuators(ActuationLayer):
             (a muscle's own name wins over its group) that covers every muscle.
         coupling: one of :data:`~fatigue_pin.ocp.actuation.COUPLINGS`, for the muscles and the
             residual torques.
-        residuals: residual torque actuators on the same joints, or None (module docstring).
+        residuals: residual torque actuators on the same joints, or None (module docstring), with the
+            muscles' coupling; beside muscles of the ``active`` coupling they may have the
+            ``observed`` one: their torque is then their control (bioptim's residual torques).
     """
 
     units_per_joint = False
@@ -79,9 +81,11 @@ class MuscleActuators(ActuationLayer):
         units = tuple(MuscleUnit(m.name, self._params_of(m, params), m) for m in muscles.muscles)
         self.n_muscles = len(units)
         self._set_units(units + (residuals.halves if residuals is not None else ()), joint_names, coupling, ("unit", "units"))
-        if residuals is not None and (residuals.coupling_kind != coupling or residuals.joint_names != self._joint_names):
+        direct = coupling == "active" and residuals is not None and residuals.coupling_kind == "observed"
+        if residuals is not None and ((residuals.coupling_kind != coupling and not direct) or residuals.joint_names != self._joint_names):
             raise ParameterError(f"residual torques with coupling {residuals.coupling_kind!r} on joints {list(residuals.joint_names)}: "
-                                 f"expected the muscles' coupling {coupling!r} on joints {list(self._joint_names)}")
+                                 f"expected the muscles' coupling {coupling!r} (or 'observed' beside 'active' muscles) on joints "
+                                 f"{list(self._joint_names)}")
         self.residuals = residuals
         self.muscles = muscles
         self.geometry = geometry
@@ -175,12 +179,15 @@ class MuscleActuators(ActuationLayer):
                          {"muscle_force": forces, "joint_torque": np.asarray(tau, dtype=float).reshape(N, self.nv)})
 
     def run_record_attributes(self) -> dict[str, object]:
-        """``actuation = "muscles"`` and ``muscle_names`` (JSON): the first units of the run; on
-        polynomial paths, ``muscle_paths``: the polynomials (JSON), which verify checks the run on."""
-        attrs: dict[str, object] = {"actuation": self.kind, "muscle_names": json.dumps(list(self.muscles.names))}
+        """``actuation = "muscles"`` and ``muscle_names`` (JSON): the first units of the run; with
+        residual torques, their ``residual_coupling``; on polynomial paths, ``muscle_paths``: the
+        polynomials (JSON), which verify checks the run on."""
+        out: dict[str, object] = {"actuation": self.kind, "muscle_names": json.dumps(list(self.muscles.names))}
+        if self.residuals is not None:
+            out["residual_coupling"] = self.residuals.coupling_kind
         if hasattr(self.geometry, "to_json"):
-            attrs["muscle_paths"] = self.geometry.to_json()
-        return attrs
+            out["muscle_paths"] = self.geometry.to_json()
+        return out
 
     def control_scales(self, magnitude: np.ndarray) -> np.ndarray:
         """Scales of the controls, (nu,): 1 for the activations (of order 1), the residual

@@ -23,7 +23,7 @@ import numpy as np
 from fatigue_pin.core.errors import TaskError
 from fatigue_pin.core.text import shown
 
-__all__ = ["END", "FRAME_TARGET_SHAPES", "FrameOrientation", "FramePlane", "FrameTarget", "JointRange", "JointTarget", "Phase",
+__all__ = ["END", "FRAME_AXES", "FRAME_TARGET_SHAPES", "FrameOrientation", "FramePlane", "FrameTarget", "JointRange", "JointTarget", "Phase",
            "StateConstraint", "StateTarget", "TaskItem", "phase_label", "phase_value"]
 
 
@@ -213,13 +213,18 @@ def _check_frame(owner: str, model, frame: str) -> None:
 
 #: shapes of the tolerance region of a :class:`FrameTarget`
 FRAME_TARGET_SHAPES = ("ball", "box")
+#: the world axes a :class:`FrameTarget` may hold
+FRAME_AXES = ("x", "y", "z")
 
 
 @dataclass(frozen=True)
 class FrameTarget:
     """The origin of frame ``frame`` at ``position`` (m, world frame) at phase ``at`` of every
     cycle, within ``tolerance`` (m): a ball of that radius (``shape = "ball"``) or a box of that
-    half-width (``"box"``). A zero tolerance pins the point (three equality rows).
+    half-width (``"box"``). A zero tolerance pins the point (an equality row per axis).
+    ``axes`` names the world axes held (``"x"``, ``"y"``, ``"z"``; default all three): with fewer,
+    the point is held on those coordinates only (``["x", "z"]`` leaves its ``y`` free), and the
+    ball or the box is of those axes.
 
     It becomes a :class:`StateConstraint` (:meth:`constraint`) on the frame position from
     Pinocchio's kinematics on CasADi symbols (:meth:`RobotModel.frame_position`). The ball is the
@@ -229,12 +234,17 @@ class FrameTarget:
 
     frame: str
     position: tuple[float, float, float]
-    at: float = 0.0
+    at: Phase = 0.0
     tolerance: float = 0.0
     shape: str = "ball"
+    axes: tuple[str, ...] = FRAME_AXES
 
     def __post_init__(self) -> None:
         owner = f"FrameTarget({self.frame!r})"
+        axes = tuple(self.axes) if isinstance(self.axes, (list, tuple)) else None
+        if not axes or not all(a in FRAME_AXES for a in axes) or len(set(axes)) != len(axes):
+            raise TaskError(f"{owner}.axes = {shown(self.axes)}: expected some of {list(FRAME_AXES)}, each once (world axes)")
+        object.__setattr__(self, "axes", tuple(a for a in FRAME_AXES if a in axes))
         object.__setattr__(self, "position", _vector(owner, "position", self.position, what="3 finite numbers (m, world frame)"))
         object.__setattr__(self, "at", _phase(owner, self.at))
         tol = _finite(owner, "tolerance", self.tolerance, "a finite tolerance >= 0 (m)")
@@ -248,16 +258,21 @@ class FrameTarget:
     def name(self) -> str:
         return f"{self.frame}_position_at_{phase_label(self.at)}"
 
+    @property
+    def rows(self) -> list[int]:
+        """The rows of :attr:`axes` in a position (3,)."""
+        return [FRAME_AXES.index(a) for a in self.axes]
+
     def distance(self, p: np.ndarray) -> float:
         """How far ``p`` (3,) is outside the tolerance region (m; <= 0 inside)."""
-        d = np.asarray(p, dtype=float) - np.asarray(self.position)
+        d = (np.asarray(p, dtype=float) - np.asarray(self.position))[self.rows]
         if self.shape == "box" or self.tolerance == 0.0:
             return float(np.max(np.abs(d)) - self.tolerance)
         return float(np.linalg.norm(d) - self.tolerance)
 
     def constraint(self, model, layout) -> StateConstraint:
         x = ca.SX.sym("x", layout.nx)
-        d = model.frame_position(self.frame)(x[layout.q]) - ca.DM(self.position)
+        d = (model.frame_position(self.frame)(x[layout.q]) - ca.DM(self.position))[self.rows]
         tol = self.tolerance
         if self.shape == "box" or tol == 0.0:
             expr, lower, upper = d, -tol, tol
@@ -272,7 +287,7 @@ class FrameTarget:
         owner = f"task frame target of {self.frame!r}"
         _check_frame(owner, model, self.frame)
         centre, radius = reach(model.pin_model, self.frame)
-        distance = float(np.linalg.norm(np.asarray(self.position) - centre))
+        distance = float(np.linalg.norm((np.asarray(self.position) - centre)[self.rows]))  # to the nearest point of the held axes
         if distance - self.tolerance * math.sqrt(3) > radius:
             raise TaskError(
                 f"{owner}: position {shown(self.position)} m is out of reach: {distance:.3f} m from the base of its chain at "

@@ -5,7 +5,8 @@ orientations).
 (``LOCAL_WORLD_ALIGNED``), with joint limits enforced by clipping and a pull towards a reference
 posture in the Jacobian's null space; it restarts from the middle of the joint ranges and from
 seeded random postures when it stalls. A target is anything with ``frame`` and ``position`` (m,
-(3,)) and a ``distance(p)`` beyond its tolerance, or ``frame``, ``matrix`` (3, 3) and
+(3,)) and a ``distance(p)`` beyond its tolerance (and optionally ``rows``, the world axes it holds,
+as indices), or ``frame``, ``matrix`` (3, 3) and
 ``tolerance`` (rad) for an orientation, such as the task items of :mod:`fatigue_pin.ocp.task`.
 """
 
@@ -39,9 +40,9 @@ def _errors(model: pin.Model, data: pin.Data, q: np.ndarray, positions, orientat
     pin.computeJointJacobians(model, data, q)
     pin.framesForwardKinematics(model, data, q)
     rows, jac = [], []
-    for fid, p in positions:
-        rows.append(p - data.oMf[fid].translation)
-        jac.append(pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3])
+    for fid, p, held in positions:
+        rows.append((p - data.oMf[fid].translation)[held])
+        jac.append(pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3][held])
     for fid, R in orientations:
         rows.append(pin.log3(R @ data.oMf[fid].rotation.T))
         jac.append(pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[3:])
@@ -84,7 +85,7 @@ def solve_ik(
     lo_f, hi_f = np.where(np.isfinite(lo), lo, -np.pi), np.where(np.isfinite(hi), hi, np.pi)
     mid = 0.5 * (lo_f + hi_f)
     fixed_idx = {model.joint_index(j): float(v) for j, v in (fixed or {}).items()}
-    pos = [(pm.getFrameId(t.frame), np.asarray(t.position)) for t in positions]
+    pos = [(pm.getFrameId(t.frame), np.asarray(t.position), list(getattr(t, "rows", (0, 1, 2)))) for t in positions]  # the held axes
     ori = [(pm.getFrameId(t.frame), t.matrix) for t in orientations]
     q_ref = np.asarray(q_ref if q_ref is not None else (q0 if q0 is not None else mid), dtype=float)
     rng = np.random.default_rng(seed)
@@ -93,7 +94,7 @@ def solve_ik(
 
     def outside(q: np.ndarray) -> tuple[float, float]:
         pin.framesForwardKinematics(pm, data, q)
-        pe = max((t.distance(data.oMf[fid].translation) for t, (fid, _) in zip(positions, pos)), default=-np.inf)
+        pe = max((t.distance(data.oMf[fid].translation) for t, (fid, *_) in zip(positions, pos)), default=-np.inf)
         oe = max((float(np.linalg.norm(pin.log3(R @ data.oMf[fid].rotation.T))) - t.tolerance
                   for t, (fid, R) in zip(orientations, ori)), default=-np.inf)
         return pe, oe

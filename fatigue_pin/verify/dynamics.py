@@ -70,6 +70,22 @@ class Dynamics:
 
         return g
 
+    def joint(self, k: int) -> Rhs:
+        """d(q, qdot, m)/dt on interval ``k`` of a muscle run of the ``active`` coupling: each
+        muscle's activation is its active fraction, a state, so the rigid body and the fatigue
+        states are integrated together."""
+        nq, pin, model, data = self.nq, self.pin, self.model, self.data
+        s = self.stored
+        tau, muscles, rows, fm = s.tau[k], s.muscles, s.active, self.fatigue(s.TL[k])
+        ny = 2 * nq
+
+        def f(t: float, z: np.ndarray) -> np.ndarray:
+            y, m = z[:ny], z[ny:]
+            torque = tau + muscles.torque(y[:nq], y[nq:], m[rows])
+            return np.concatenate([y[nq:], pin.aba(model, data, y[:nq], y[nq:], torque), fm(t, m)])
+
+        return f
+
     def fatigue(self, TL: np.ndarray) -> Rhs:
         """dm/dt of every half's states with the target loads ``TL`` (halves,) held."""
         halves, off = self.halves, self.offsets
@@ -156,6 +172,9 @@ def _interval_gaps(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, k: int, 
     """Fill row ``k`` of the gaps ``gy`` (q, qdot), ``gm`` (fatigue) and, with substeps, of the RK4
     residual ``res`` and truncation ``trunc``; a failed integration is an infinite gap, named in ``failed``."""
     nm = s.M.shape[1]
+    if s.active is not None:  # the rigid body reads the fatigue states: one integration of both
+        _joint_interval_gaps(s, dyn, ref, k, gy, gm, res, trunc, failed)
+        return
     fy, fm = dyn.rigid(k), dyn.fatigue(s.TL[k])
     try:
         ey = integrate(fy, s.Y[k], s.dt, ref)
@@ -170,6 +189,23 @@ def _interval_gaps(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, k: int, 
         rm = rk4(fm, s.M[k], s.dt, s.substeps) if nm else s.M[k]
         res[k] = np.abs(np.concatenate([ry - s.Y[k + 1], rm - s.M[k + 1]]))
         trunc[k] = np.abs(np.concatenate([ry - ey, rm - em]))
+
+
+def _joint_interval_gaps(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, k: int, gy: np.ndarray, gm: np.ndarray,
+                         res: np.ndarray, trunc: np.ndarray, failed: list[str]) -> None:
+    """:func:`_interval_gaps` of a run whose rigid body reads the fatigue states (:meth:`Dynamics.joint`)."""
+    ny = s.Y.shape[1]
+    f, z0, z1 = dyn.joint(k), np.concatenate([s.Y[k], s.M[k]]), np.concatenate([s.Y[k + 1], s.M[k + 1]])
+    try:
+        e = integrate(f, z0, s.dt, ref)
+    except IntegrationFailed as exc:
+        gy[k], gm[k] = np.inf, np.inf
+        failed.append(f"interval {k} ({exc})")
+        return
+    gy[k], gm[k] = np.abs(e[:ny] - s.Y[k + 1]), np.abs(e[ny:] - s.M[k + 1])
+    if s.substeps:
+        r = rk4(f, z0, s.dt, s.substeps)
+        res[k], trunc[k] = np.abs(r - z1), np.abs(r - e)
 
 
 def gap_checks(s: Stored, dyn: Dynamics, tol: VerifyTolerances, ref: ReferenceIntegration, notes: list[str],
@@ -243,7 +279,16 @@ def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report:
     ys, ms = np.full_like(Y, np.nan), np.full_like(M, np.nan)
     ys[0], ms[0] = Y[0], M[0]
     diverged = stopped = None
+    ny = Y.shape[1]
     for k in range(N):
+        if diverged is None and s.active is not None:  # the rigid body reads the fatigue states: both at once
+            try:
+                z = integrate(dyn.joint(k), np.concatenate([ys[k], ms[k]]), s.dt, ref)
+                ys[k + 1], ms[k + 1] = z[:ny], z[ny:]
+                advance(1)
+                continue
+            except IntegrationFailed:
+                diverged = k
         if diverged is None:
             try:
                 ys[k + 1] = integrate(dyn.rigid(k), ys[k], s.dt, ref)

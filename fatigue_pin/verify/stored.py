@@ -75,6 +75,9 @@ class Stored:
         muscles: a muscle run's muscles on its model, evaluated on numbers
             (:class:`~fatigue_pin.verify.muscle_torque.NumericMuscles`), or None; their torque at
             the activations ``activations`` (N, nm) adds to ``tau`` (then the residual torques).
+        active: under the ``active`` coupling, the columns of M of each muscle's active fraction,
+            which is then its activation (the rigid body is integrated with the fatigue states);
+            None: the activations are the stored controls.
     """
 
     run: RunResult
@@ -93,6 +96,7 @@ class Stored:
     notes: list[str] = field(default_factory=list)
     muscles: Any = None
     activations: np.ndarray | None = field(default=None, repr=False)
+    active: list[int] | None = None
 
     @property
     def N(self) -> int:
@@ -133,9 +137,10 @@ def rebuild(run: RunResult) -> Stored:
     """
     notes: list[str] = []
     coupling = str(run.attrs.get("coupling", "tl+mf<=1"))
-    if coupling == "active":
-        raise ResultFileError(f"run {run.name!r} has the coupling 'active' (torque = ma x limit within each interval); "
-                              "verify checks runs of the couplings 'tl+mf<=1' and 'observed'")
+    residual = str(run.attrs.get("residual_coupling", coupling))
+    if coupling == "active" and (run.actuation != "muscles" or (len(run.actuator_names) > len(run.muscle_names) and residual == "active")):
+        raise ResultFileError(f"run {run.name!r} has the coupling 'active' on torque halves (torque = ma x limit within each "
+                              "interval); verify checks it for muscles only (their force from ma, residual torques their control)")
     N = _intervals(run)
     horizon, dt, n, substeps = _grid(run, notes)
     study = _study(run, notes)
@@ -146,10 +151,14 @@ def rebuild(run: RunResult) -> Stored:
     cols = [run.fatigue[s][:, h] for h, half in enumerate(halves) for s in half.states]
     M = np.column_stack(cols).astype(float) if cols else np.zeros((N + 1, 0))
     muscles, activations = _muscles(run, robot, notes)
+    active = None
+    if coupling == "active":  # each muscle's force follows its active fraction, a state: its column of M
+        offsets = np.cumsum([0, *(len(h.states) for h in halves)])
+        active = [int(offsets[i] + h.states.index(h.model.active_state)) for i, h in enumerate(halves[: len(run.muscle_names)])]
     return Stored(run=run, robot=robot, task=task, halves=halves, limits=limits, horizon=horizon, dt=dt, n=n,
                   substeps=substeps, Y=np.hstack([run.q, run.qdot]).astype(float), M=M,
                   tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=run.target_loads(), notes=notes,
-                  muscles=muscles, activations=activations)
+                  muscles=muscles, activations=activations, active=active)
 
 
 def _muscles(run: RunResult, robot, notes: list[str]) -> tuple[Any, np.ndarray | None]:

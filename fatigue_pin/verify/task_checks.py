@@ -137,7 +137,8 @@ def _frame_target(item: FrameTarget, ctx: _Context) -> Violation:
     nodes = ctx.nodes(item.at)
     p, _ = ctx.frames.placements(item.frame)
     v = [item.distance(p[k]) if np.all(np.isfinite(p[k])) else np.nan for k in nodes]
-    return _worst_at(v, nodes, f"{item.frame} at {shown(item.position)} +- {item.tolerance:g} m ({item.shape})")
+    axes = "" if len(item.axes) == 3 else f", axes {''.join(item.axes)}"
+    return _worst_at(v, nodes, f"{item.frame} at {shown(item.position)} +- {item.tolerance:g} m ({item.shape}{axes})")
 
 
 def _frame_plane(item: FramePlane, ctx: _Context) -> Violation:

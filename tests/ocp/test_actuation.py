@@ -214,12 +214,12 @@ def test_a_passive_run_plots_replays_and_verifies(pendulum, tmp_path):
     assert report.passed, report
 
 
-def test_verify_refuses_an_active_run_with_one_line(pendulum):
+def test_verify_refuses_an_active_run_of_torque_halves_with_one_line(pendulum):
     from fatigue_pin.core.errors import ResultFileError
     from fatigue_pin.verify.verifier import verify_run
 
     ocp, sol = _solve(pendulum, Actuation(passive=("pendulum",), coupling="active"))
-    with pytest.raises(ResultFileError, match=r"has the coupling 'active' .*verify checks runs of the couplings 'tl\+mf<=1' and 'observed'"):
+    with pytest.raises(ResultFileError, match=r"has the coupling 'active' on torque halves .*verify checks it for muscles only"):
         verify_run(solution_to_run(ocp, sol, "full/active"))
 
 

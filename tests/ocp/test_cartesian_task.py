@@ -69,6 +69,34 @@ def test_constraint_rows_evaluate_the_frame_position(model):
     assert float(ori.expression(x)) == pytest.approx(1 - np.cos(0.05))
 
 
+def test_a_frame_target_on_some_axes_holds_only_those(model):
+    """``axes``: the rows of the named world axes only, and the distance (and verify's check) on them."""
+    q = np.array([0.3, -1.1, 1.4, -1.0, -1.5, 0.2])
+    p = frame_placement(model.pin_model, "tool0", q).translation
+    L = Study.from_file(STUDY).problem(model).layout
+    x = np.zeros(L.nx)
+    x[L.q] = q
+    off_in_y = p + [0.0, 0.2, 0.0]
+    xz = FrameTarget("tool0", off_in_y, "end", 0.0, "box", ["z", "x"])
+    assert xz.axes == ("x", "z") and xz.at == "end"  # world order
+    sc = xz.constraint(model, L)
+    np.testing.assert_allclose(np.asarray(sc.expression(x)).ravel(), [0.0, 0.0], atol=1e-12)  # two rows, both met
+    assert sc.lower == (0.0, 0.0) == sc.upper
+    assert xz.distance(p) == pytest.approx(0.0, abs=1e-12)
+    assert FrameTarget("tool0", off_in_y).distance(p) == pytest.approx(0.2)  # all three axes by default
+    assert FrameTarget("tool0", off_in_y, 0.0, 0.1, "ball", ["y"]).distance(p) == pytest.approx(0.1)
+    for bad in ([], ["x", "x"], ["w"], "x"):
+        with pytest.raises(TaskError, match="axes"):
+            FrameTarget("tool0", p, axes=bad)
+    # inverse kinematics holds the named axes only: a point 10 m away in y is reached in x and z
+    from fatigue_pin.robot.ik import solve_ik
+
+    far = FrameTarget("tool0", p + [0.05, 10.0, -0.05], axes=["x", "z"])
+    res = solve_ik(model, [far], q0=q)
+    assert res.success and far.distance(frame_placement(model.pin_model, "tool0", res.q).translation) < 1e-6
+    far.check(model)  # within reach on its axes
+
+
 def _error(study: Study, changes: dict) -> str:
     with pytest.raises(FatiguePinError) as info:
         s = study.replace(changes) if changes else study

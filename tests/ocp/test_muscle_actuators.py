@@ -13,6 +13,7 @@ from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.muscles.geometry import FixedMomentArms
 from fatigue_pin.muscles.muscle import Muscle, PathPoint
 from fatigue_pin.muscles.muscle_set import MuscleSet
+from fatigue_pin.ocp.actuation import Actuation
 from fatigue_pin.ocp.muscle_actuators import MuscleActuators
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
@@ -98,6 +99,13 @@ def test_residual_torques_add_to_the_muscles(arm26, arm26_muscles, arm26_geometr
     assert np.allclose(A.joint_torque(guess[0], None, y), tau[0], atol=1e-6)
     with pytest.raises(ParameterError, match=r"residual torques with coupling .tl\+mf<=1.*expected the muscles. coupling .active."):
         MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia, coupling="active", residuals=residuals)
+    # beside muscles of the 'active' coupling, residual torques of the 'observed' one deliver their control
+    direct = SignedTorqueActuators.from_model(arm26, xia, Actuation(coupling="observed"))
+    B = MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia, coupling="active", residuals=direct)
+    m = np.tile([0.25, 0.75, 0.0], 10)  # every unit's active fraction 0.25
+    muscles_only = MuscleActuators(arm26.joint_names, arm26_muscles, arm26_geometry, xia, coupling="active")
+    assert np.allclose(B.joint_torque(u, m, y), muscles_only.joint_torque(a, m[:18], y) + np.array([4.0, -7.0]), atol=1e-12)
+    assert B.run_record_attributes()["residual_coupling"] == "observed" and not B.coupling_rows
 
 
 def test_a_per_joint_torque_term_on_muscles_is_refused(small_problem):

@@ -68,3 +68,34 @@ def test_a_run_on_polynomial_paths_is_checked_on_its_own_polynomials(tmp_path):
     numeric = NumericMuscles(study.model().pin_model, study.muscles(), PolynomialPaths.polynomials_from_json(run.attrs["muscle_paths"]))
     q = np.asarray(run.q[3], dtype=float)
     assert 1e-9 < np.max(np.abs(exact.lengths(q) - numeric.lengths(q))) < 1e-3
+
+
+def test_verify_integrates_an_active_muscle_run_with_its_fatigue_states(tmp_path):
+    """studies/bioptim_static_arm_xia.toml (the ``active`` coupling: each force from its muscle's
+    active fraction, a state) on a small grid: verify's RK4, written again with the rigid body and
+    the fatigue states integrated together, reproduces the nodes; read as if the force followed the
+    control (``observed``), or with one muscle's stored active fraction changed, it does not. (The
+    grid, 2 RK4 steps of 0.04 s, is coarse for the gap tolerances: the shipped one passes them,
+    tests/verify/test_verify_studies.py.)"""
+    import dataclasses
+    from pathlib import Path
+
+    from fatigue_pin.io.results import read_run
+    from fatigue_pin.io.study import Study, run_study
+
+    study = Study.from_file(Path(__file__).resolve().parents[2] / "studies" / "bioptim_static_arm_xia.toml")
+    out = tmp_path / "arm.h5"
+    run_study(study.replace({"task.intervals_per_cycle": 10, "transcription.substeps": 2, "solver.compile": False,
+                             "solver.derivative_blocks": True}), out)
+    run = read_run(out)
+    assert run.attrs["coupling"] == "active" and run.attrs["residual_coupling"] == "observed"
+    report = verify_run(run)
+    checks = {c.name: c for c in report.checks}
+    assert report.rk4_residual < 1e-9 and checks["task frame targets"].passed
+    assert report.gap_qdot < 1e-2  # RK4's truncation on this grid, not a wrong torque
+    as_observed = verify_run(dataclasses.replace(run, attrs={**run.attrs, "coupling": "observed"}))
+    assert as_observed.rk4_residual > 1e-2 and as_observed.gap_qdot > 1e-1  # the activations are not the controls
+    fatigue = {k: v.copy() for k, v in run.fatigue.items()}
+    fatigue["ma"][4, run.actuator_names.index("BIClong")] += 0.05  # node 4: more of the biceps active than solved
+    moved = verify_run(dataclasses.replace(run, fatigue=fatigue))
+    assert moved.rk4_residual > 1e-3 and not moved.passed
