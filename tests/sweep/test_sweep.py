@@ -289,14 +289,14 @@ def test_scheduler_sweep_survives_a_killed_worker_and_resumes(tmp_path):
     procs = [subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0", "--dashboard-address", "127.0.0.1:0",
                                "--scheduler-file", str(scheduler_file)], env=env, stdout=logs[0], stderr=subprocess.STDOUT)]
     try:
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 120  # bounds, not delays: under load a worker starts slowly
         while not scheduler_file.exists() and time.monotonic() < deadline:
             time.sleep(0.1)
         for i in (1, 2):
             procs.append(subprocess.Popen([str(BIN / "dask"), "worker", "--scheduler-file", str(scheduler_file), "--nthreads", "1",
                                            "--nworkers", "1", "--host", "127.0.0.1", "--dashboard-address", "127.0.0.1:0", "--name", f"w{i}"],
                                           env=env, stdout=logs[i], stderr=subprocess.STDOUT))
-        with Client(scheduler_file=str(scheduler_file), timeout="30s") as client:
+        with Client(scheduler_file=str(scheduler_file), timeout="120s") as client:
             client.wait_for_workers(2, timeout=40)
             pids = client.run(os.getpid)  # worker address -> worker process id
             # nothing listens beyond 127.0.0.1 (scheduler, nannies, workers)

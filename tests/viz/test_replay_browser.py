@@ -106,7 +106,7 @@ class _Page:
         elif method == "Log.entryAdded" and p["entry"]["level"] == "error":
             self.errors.append(f"log error ({p['entry'].get('source')}): {p['entry']['text']}")
 
-    async def call(self, method: str, timeout_s: float = 30.0, **params: object) -> dict:
+    async def call(self, method: str, timeout_s: float = 120.0, **params: object) -> dict:
         self.next_id += 1
         mid = self.next_id
         await self.ws.write_message(json.dumps({"id": mid, "method": method, "params": params}))
@@ -128,7 +128,7 @@ class _Page:
             raise RuntimeError(f"{expression}: {res['exceptionDetails']}")
         return res["result"].get("value")
 
-    async def wait_for(self, expression: str, timeout_s: float = 20.0) -> None:
+    async def wait_for(self, expression: str, timeout_s: float = 120.0) -> None:
         deadline = time.monotonic() + timeout_s
         while not await self.js(expression):
             if time.monotonic() > deadline:
@@ -151,7 +151,7 @@ def _marker_color(joint_half: str) -> str:
 
 
 @contextlib.asynccontextmanager
-async def open_replay(chromium: str, html: Path, out: Path, timeout_s: float = 20.0) -> AsyncIterator[_Page]:
+async def open_replay(chromium: str, html: Path, out: Path, timeout_s: float = 120.0) -> AsyncIterator[_Page]:
     """Headless Chromium (profile in ``out``) on the exported replay ``html``, once its animation
     is loaded; the browser is stopped on exit."""
     from tornado.websocket import websocket_connect
@@ -161,7 +161,7 @@ async def open_replay(chromium: str, html: Path, out: Path, timeout_s: float = 2
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         port_file = profile / "DevToolsActivePort"
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 120  # a bound, not a delay: the loop ends when Chromium answers
         while not (port_file.is_file() and port_file.read_text().strip()):
             if proc.poll() is not None or time.monotonic() > deadline:
                 raise RuntimeError(f"Chromium did not start its DevTools server (exit code {proc.poll()})")
@@ -300,7 +300,7 @@ def _mesh_color(name: str) -> str:
 
 
 async def _drive_robot(chromium: str, html: Path, out: Path) -> dict:
-    async with open_replay(chromium, html, out, timeout_s=60) as page:
+    async with open_replay(chromium, html, out, timeout_s=120) as page:
         await asyncio.sleep(1.0)  # the base's Collada mesh loads asynchronously
         report = {"duration": await page.js("viewer.animator.duration")}
         report["first"] = await page.screenshot_at(0.0, out / "robot_t0.png")
