@@ -52,6 +52,8 @@ MAX_PATH_ORDER = 16
 #: poses (at most ``_PER_COORDINATE`` per coordinate), and checked on the grid between them.
 _SAMPLES = 1600
 _PER_COORDINATE = 201
+#: Ridge of the least squares, relative to columns of unit norm.
+_RIDGE = 1e-6
 
 
 def _chebyshev(s: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -274,7 +276,14 @@ class PolynomialPaths:
         def fitted(order: int) -> PathPolynomial:
             cols = np.flatnonzero(degrees <= order)
             A = np.vstack([fit_terms[:, cols], *(dj[:, cols] for dj in fit_derivatives)])
-            coeffs = scipy.linalg.lstsq(A, b, lapack_driver="gelsy")[0]  # QR with pivoting: a tenth of the SVD's time
+            # columns of unit norm and a ridge of 1e-6 of it: a well-posed problem (the highest
+            # orders are nearly singular without it); then the coefficients to 1e-10 m (|T_n| <= 1:
+            # the lengths move by less than 1e-8 m, a thousandth of the fit's error), because their
+            # last bits follow the BLAS's threads and the compiled-code cache key follows them
+            norms = np.linalg.norm(A, axis=0)
+            ridge = np.vstack([A / norms, _RIDGE * np.eye(cols.size)])
+            scaled = scipy.linalg.lstsq(ridge, np.concatenate([b, np.zeros(cols.size)]), lapack_driver="gelsy")[0]
+            coeffs = np.round(scaled / norms, 10) + 0.0  # + 0.0: no negative zeros
             rms_L = float(np.sqrt(np.mean((chk_terms[:, cols] @ coeffs - L_chk) ** 2)))
             rms_r = max(float(np.sqrt(np.mean((dj[:, cols] @ coeffs - G_chk[:, j]) ** 2))) for j, dj in enumerate(chk_derivatives))
             return PathPolynomial(name, tuple(joints), center, half, tuple(full.exponents[c] for c in cols),
