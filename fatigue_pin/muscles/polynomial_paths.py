@@ -209,8 +209,9 @@ class PolynomialPaths:
 
     Args:
         geometry: the exact paths (:class:`~fatigue_pin.muscles.geometry.MuscleGeometry`).
-        lower, upper: the fitted range of every coordinate (nq,) (rad or m); default the model's
-            position limits.
+        lower: the lower end of the fitted range of every coordinate (nq,) (rad or m); default
+            the model's lower position limits.
+        upper: the upper end (nq,); default the model's upper position limits.
         tolerance: root mean square error allowed in the lengths (m) and moment arms (m per rad).
         max_order: the highest total degree tried.
 
