@@ -41,7 +41,7 @@ import scipy.linalg
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.text import shown
 
-__all__ = ["PathPolynomial", "PolynomialPaths", "DEFAULT_PATH_TOLERANCE", "MAX_PATH_ORDER"]
+__all__ = ["PathPolynomial", "PolynomialPaths", "polynomial_lengths", "DEFAULT_PATH_TOLERANCE", "MAX_PATH_ORDER"]
 
 #: Root mean square error allowed in the lengths (m) and moment arms (m per rad) of a fit: Moco's
 #: ``PolynomialPathFitter`` default.
@@ -56,16 +56,22 @@ _PER_COORDINATE = 201
 _RIDGE = 1e-6
 
 
-def _chebyshev(s: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """T_n(s) and T_n'(s) for n = 0..order, each (len(s), order + 1)."""
+def _chebyshev(s: np.ndarray, order: int, derivatives: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """T_n(s) and T_n'(s) (None unless ``derivatives``) for n = 0..order, each (len(s), order + 1)."""
     s = np.asarray(s, dtype=float)
     T = np.zeros((s.size, order + 1))
-    U = np.zeros((s.size, order + 1))  # second kind: T_n' = n U_{n-1}
-    T[:, 0], U[:, 0] = 1.0, 1.0
+    T[:, 0] = 1.0
     if order >= 1:
-        T[:, 1], U[:, 1] = s, 2 * s
+        T[:, 1] = s
     for n in range(1, order):
         T[:, n + 1] = 2 * s * T[:, n] - T[:, n - 1]
+    if not derivatives:
+        return T, None
+    U = np.zeros((s.size, order + 1))  # second kind: T_n' = n U_{n-1}
+    U[:, 0] = 1.0
+    if order >= 1:
+        U[:, 1] = 2 * s
+    for n in range(1, order):
         U[:, n + 1] = 2 * s * U[:, n] - U[:, n - 1]
     dT = np.zeros_like(T)
     dT[:, 1:] = np.arange(1, order + 1) * U[:, :order]
@@ -105,14 +111,18 @@ class PathPolynomial:
     rms_length: float
     rms_moment_arm: float
 
+    def _scaled(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The exponents (n_terms, d) and the scaled crossed coordinates s (n, d) of poses q (n, nq)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        e = np.asarray(self.exponents, dtype=int).reshape(-1, len(self.joints))
+        return e, (q[:, list(self.joints)] - np.asarray(self.center)) / np.asarray(self.half_range)
+
     def _basis(self, q: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
         """Terms (n, n_terms) and their derivatives in each crossed coordinate (d of (n, n_terms)),
         at poses q (n, nq)."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        e = np.asarray(self.exponents, dtype=int).reshape(-1, len(self.joints))
-        s = (q[:, list(self.joints)] - np.asarray(self.center)) / np.asarray(self.half_range)
+        e, s = self._scaled(q)
         tables = [_chebyshev(s[:, j], self.order) for j in range(len(self.joints))]
-        terms = np.ones((q.shape[0], e.shape[0]))
+        terms = np.ones((s.shape[0], e.shape[0]))
         for j, (T, _) in enumerate(tables):
             terms *= T[:, e[:, j]]
         derivatives = []
@@ -125,17 +135,10 @@ class PathPolynomial:
 
     def length(self, q: np.ndarray) -> np.ndarray:
         """Lengths (n,) (m) at poses q (n, nq), on numbers."""
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        e = np.asarray(self.exponents, dtype=int).reshape(-1, len(self.joints))
-        s = (q[:, list(self.joints)] - np.asarray(self.center)) / np.asarray(self.half_range)
-        terms = np.ones((q.shape[0], e.shape[0]))
+        e, s = self._scaled(q)
+        terms = np.ones((s.shape[0], e.shape[0]))
         for j in range(len(self.joints)):
-            T = np.ones((q.shape[0], self.order + 1))
-            if self.order >= 1:
-                T[:, 1] = s[:, j]
-            for n in range(1, self.order):
-                T[:, n + 1] = 2 * s[:, j] * T[:, n] - T[:, n - 1]
-            terms *= T[:, e[:, j]]
+            terms *= _chebyshev(s[:, j], self.order, derivatives=False)[0][:, e[:, j]]
         return terms @ np.asarray(self.coefficients)
 
     def gradient(self, q: np.ndarray, nq: int) -> np.ndarray:
@@ -178,6 +181,12 @@ class PathPolynomial:
                    tuple(float(h) for h in data["half_range"]), tuple(tuple(int(x) for x in e) for e in data["exponents"]),
                    tuple(float(a) for a in data["coefficients"]), int(data["order"]), float(data["rms_length"]),
                    float(data["rms_moment_arm"]))
+
+
+def polynomial_lengths(polynomials: Sequence[PathPolynomial], q: np.ndarray) -> np.ndarray:
+    """Every muscle's length (nm,) (m) at one pose q (nq,), on numbers: what verify checks a run on."""
+    pose = np.asarray(q, dtype=float).reshape(1, -1)
+    return np.array([float(p.length(pose)[0]) for p in polynomials])
 
 
 def _grid(lower: np.ndarray, upper: np.ndarray, per: int, between: bool) -> np.ndarray:
@@ -346,9 +355,8 @@ class PolynomialPaths:
         return tuple(PathPolynomial.from_dict(d) for d in json.loads(text))
 
     def numeric_lengths(self, q: np.ndarray) -> np.ndarray:
-        """Lengths (nm,) (m) at one pose q (nq,), on numbers."""
-        q = np.asarray(q, dtype=float).reshape(1, -1)
-        return np.array([float(p.length(q)[0]) for p in self.polynomials])
+        """Lengths (nm,) (m) at one pose q (nq,), on numbers (:func:`polynomial_lengths`)."""
+        return polynomial_lengths(self.polynomials, q)
 
     def errors_along(self, q: np.ndarray, exact: Any) -> tuple[float, float]:
         """The largest differences (m, m per rad) between these paths and ``exact``'s (an object

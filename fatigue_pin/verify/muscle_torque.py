@@ -58,8 +58,9 @@ class NumericMuscles:
         """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,): the run's
         polynomials if it has them, else the exact paths."""
         if self.polynomials is not None:
-            pose = np.asarray(q, dtype=float).reshape(1, -1)
-            return np.array([float(p.length(pose)[0]) for p in self.polynomials])
+            from fatigue_pin.muscles.polynomial_paths import polynomial_lengths
+
+            return polynomial_lengths(self.polynomials, q)
         return self.exact_lengths(q)
 
     def polynomial_errors(self, q: np.ndarray) -> tuple[float, float]:

@@ -197,12 +197,12 @@ def _muscles(run: RunResult, robot, notes: list[str]) -> tuple[Any, np.ndarray |
         if tuple(p.muscle for p in polynomials) != muscles.names:
             raise ResultFileError(f"run {run.name!r}: polynomial paths for {[p.muscle for p in polynomials]}; expected its muscles "
                                   f"{list(muscles.names)}")
-        numeric = NumericMuscles(robot.pin_model, muscles, polynomials)
+    numeric = NumericMuscles(robot.pin_model, muscles, polynomials)
+    if polynomials is not None:
         dL, dr = numeric.polynomial_errors(np.asarray(run.q, dtype=float))
         notes.append(f"muscle paths: the run's polynomials (checked as solved); along its motion they differ from the exact "
                      f"paths by at most {dL * 1e3:.3g} mm in length and {dr * 1e3:.3g} mm in moment arm")
-        return numeric, run.half_torques()[:, : len(muscles.names)]
-    return NumericMuscles(robot.pin_model, muscles), run.half_torques()[:, : len(muscles.names)]
+    return numeric, run.half_torques()[:, : len(muscles.names)]
 
 
 def _intervals(run: RunResult) -> int:
