@@ -105,8 +105,18 @@ def _stored_as_interrupted(kind, out):
     return run.attrs.get("interrupted") if not run.attrs["finished"] and not run.attrs["converged"] else "finished"
 
 
-@pytest.mark.parametrize("step", [*WRITE_STEPS, "solve", "between"])
-@pytest.mark.parametrize("kind", ["sliding", "max-cycles", "mpc"])
+def _cases():
+    """Every step for the sliding driver; for the others, the steps that differ by driver (the
+    solve, between two solves, and the write of their own items), with the rest of the shared
+    write path of the result file (:func:`fatigue_pin.core.files.atomic_write`) marked slow: it is the
+    sliding driver's write path too."""
+    for kind in ("sliding", "max-cycles", "mpc"):
+        for step in (*WRITE_STEPS, "solve", "between"):
+            shared = kind != "sliding" and step in ("copy", "h5", "fsync", "rename")
+            yield pytest.param(kind, step, marks=pytest.mark.slow) if shared else (kind, step)
+
+
+@pytest.mark.parametrize("kind, step", list(_cases()))
 def test_a_sigint_at_any_step_is_stored_as_interrupted_and_resumes_to_the_same_result(tmp_path, references, kind, step):
     """SIGINT at the second occurrence of ``step`` (the first copy: the first write makes the
     file, so it has no copy): the child exits with 130, the file says the run was interrupted and keeps
