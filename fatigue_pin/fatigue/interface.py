@@ -122,6 +122,11 @@ class FatigueModel:
         return len(cls.param_names)
 
     @classmethod
+    def total_states(cls) -> tuple[str, ...]:
+        """The states whose sum is :attr:`state_total` (all of them, unless a model says otherwise)."""
+        return cls.state_names
+
+    @classmethod
     def state_index(cls, name: str) -> int:
         """Position of state ``name`` in this model's state vector."""
         if name not in cls.state_names:

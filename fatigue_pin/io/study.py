@@ -370,7 +370,8 @@ class Study:
             geometry = MuscleGeometry(model.pin_model, muscles)
             if actuation.paths == "polynomial":
                 geometry = PolynomialPaths(geometry, tolerance=actuation.path_tolerance)
-            return MuscleActuators(model.joint_names, muscles, geometry, params, actuation.coupling, residuals)
+            return MuscleActuators(model.joint_names, muscles, geometry, params, actuation.coupling, residuals,
+                                   actuation.activation_dynamics)
         except FatiguePinError as exc:
             key, source = self._muscle_source()
             raise StudyError(f"{key} = {source!r}: {exc}") from None

@@ -49,6 +49,9 @@ class Actuation:
         paths: with muscles, one of :data:`MUSCLE_PATHS`.
         path_tolerance: with ``paths = "polynomial"``, the root mean square error allowed in the
             fitted lengths (m) and moment arms (m per rad) over the joints' ranges.
+        activation_dynamics: with muscles, the controls are excitations and each muscle's
+            activation is a state with the muscle's time constants
+            (:mod:`fatigue_pin.muscles.activation`); false: the controls are the activations.
     """
 
     kind: str = setting("torque", f"one of {list(ACTUATOR_KINDS)}", lambda v: v in ACTUATOR_KINDS)
@@ -59,6 +62,7 @@ class Actuation:
     residual_fatigue: bool = setting(False, "true or false", is_bool)
     paths: str = setting("exact", f"one of {list(MUSCLE_PATHS)}", lambda v: v in MUSCLE_PATHS)
     path_tolerance: float = setting(1e-4, "a length > 0 (m)", lambda v: is_number(v) and v > 0)
+    activation_dynamics: bool = setting(False, "true or false", is_bool)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -66,6 +70,12 @@ class Actuation:
         if self.kind != "muscles" and self.residuals > 0:
             raise ParameterError(f"Actuation.residuals = {self.residuals:g}: residual torques go beside muscles; expected "
                                  "kind = 'muscles', or residuals = 0")
+        if self.kind != "muscles" and self.activation_dynamics:
+            raise ParameterError("Actuation.activation_dynamics = true: activations are muscle states; expected kind = 'muscles', "
+                                 "or activation_dynamics = false")
+        if self.kind == "muscles" and self.activation_dynamics and self.coupling == "active":
+            raise ParameterError("Actuation.activation_dynamics = true with coupling = 'active': the force would follow m_active, "
+                                 "not the activation; expected coupling 'tl+mf<=1' or 'observed', or activation_dynamics = false")
         if self.kind != "muscles" and self.paths != "exact":
             raise ParameterError(f"Actuation.paths = {self.paths!r}: polynomial paths are muscle paths; expected kind = 'muscles', "
                                  "or paths = 'exact'")

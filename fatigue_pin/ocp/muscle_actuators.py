@@ -3,13 +3,16 @@ joints through its moment arms, and its fatigue model carries its capacity state
 
 With nm muscles on a model of nv joints (docs/muscles.md):
 
-* controls ``u = a`` (nm,), the activations, in [0, 1];
-* target loads ``TL = a`` (the muscle's share of its maximal activation);
+* controls ``u = a`` (nm,), the activations, in [0, 1]; with activation dynamics
+  (``activation_dynamics``, :mod:`fatigue_pin.muscles.activation`) the excitations ``e``, and the
+  activation ``a`` is the first state of each muscle's unit;
+* target loads ``TL = a`` (the muscle's share of its maximal activation), or ``TL = e``;
 * the force of muscle i is ``F_i(a_i^eff, L_i(q), Ldot_i(q, qdot))``
   (:meth:`~fatigue_pin.muscles.muscle.Muscle.force`), with the effective activation ``a^eff = a``
   under the ``tl+mf<=1`` and ``observed`` couplings (the paper's: ``TL + mf <= 1`` bounds the
   activation by what is not fatigued) and ``a^eff = m_active`` under ``active`` (bioptim's: the
-  force follows Xia's active fraction, which tracks TL while enough is rested);
+  force follows Xia's active fraction, which tracks TL while enough is rested); with activation
+  dynamics ``a^eff`` is the activation state ``a``;
 * the joint torque is ``r(q)^T F`` (nv,), so it depends on the rigid-body state: the interval
   functions integrate the rigid body with it (:attr:`torque_follows_state`);
 * fatigue states: each muscle's model's states, muscle after muscle (:class:`ActuationLayer`).
@@ -33,6 +36,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.interface import FatigueModel
+from fatigue_pin.muscles.activation import ACTIVATION, with_activation
 from fatigue_pin.muscles.muscle import Muscle
 from fatigue_pin.muscles.muscle_set import MuscleSet
 from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr, RunRecord
@@ -69,6 +73,9 @@ class MuscleActuators(ActuationLayer):
         residuals: residual torque actuators on the same joints, or None (module docstring), with the
             muscles' coupling; beside muscles of the ``active`` coupling they may have the
             ``observed`` one: their torque is then their control (bioptim's residual torques).
+        activation_dynamics: the controls are excitations and each muscle's activation is a state
+            (:mod:`fatigue_pin.muscles.activation`), with the muscle's own time constants; not
+            with the ``active`` coupling (whose force follows m_active).
     """
 
     units_per_joint = False
@@ -77,8 +84,14 @@ class MuscleActuators(ActuationLayer):
     torque_follows_state = True
 
     def __init__(self, joint_names: tuple[str, ...], muscles: MuscleSet, geometry: Any, params: MuscleParams,
-                 coupling: str = "tl+mf<=1", residuals: SignedTorqueActuators | None = None) -> None:
-        units = tuple(MuscleUnit(m.name, self._params_of(m, params), m) for m in muscles.muscles)
+                 coupling: str = "tl+mf<=1", residuals: SignedTorqueActuators | None = None,
+                 activation_dynamics: bool = False) -> None:
+        if activation_dynamics and coupling == "active":
+            raise ParameterError("activation_dynamics = true with coupling 'active': the force would follow m_active, not the "
+                                 "activation; expected coupling 'tl+mf<=1' or 'observed', or activation_dynamics = false")
+        #: whether each muscle's activation is a state driven by its excitation, the control
+        self.activation_dynamics = bool(activation_dynamics)
+        units = tuple(MuscleUnit(m.name, self._unit_params(m, params, self.activation_dynamics), m) for m in muscles.muscles)
         self.n_muscles = len(units)
         self._set_units(units + (residuals.halves if residuals is not None else ()), joint_names, coupling, ("unit", "units"))
         direct = coupling == "active" and residuals is not None and residuals.coupling_kind == "observed"
@@ -98,6 +111,14 @@ class MuscleActuators(ActuationLayer):
         self.forces = ca.Function("muscle_forces", [q, v, a], [F], ["q", "v", "a"], ["F"])
         #: ``muscle_torque(q, v, a) -> tau (nv,)`` (N m): ``r(q)^T F``
         self.torque = ca.Function("muscle_torque", [q, v, a], [ca.mtimes(geometry.moment_arms(q).T, F)], ["q", "v", "a"], ["tau"])
+
+    @classmethod
+    def _unit_params(cls, muscle: Muscle, params: MuscleParams, dynamics: bool) -> FatigueModel:
+        """The model of a muscle's unit: its fatigue model, with its activation dynamics in front."""
+        model = cls._params_of(muscle, params)
+        if not dynamics:
+            return model
+        return with_activation(model, muscle.activation_time, muscle.deactivation_time, muscle.activation_smoothing)
 
     @staticmethod
     def _params_of(muscle: Muscle, params: MuscleParams) -> FatigueModel:
@@ -159,7 +180,7 @@ class MuscleActuators(ActuationLayer):
         return self.residuals.per_joint(u[..., self.n_muscles:])
 
     def activation_rows(self) -> list[int]:
-        """The activations: the first nm controls."""
+        """The activations (the excitations, with activation dynamics): the first nm controls."""
         return list(range(self.n_muscles))
 
     def residual_rows(self) -> list[int]:
@@ -183,6 +204,8 @@ class MuscleActuators(ActuationLayer):
         residual torques, their ``residual_coupling``; on polynomial paths, ``muscle_paths``: the
         polynomials (JSON), which verify checks the run on."""
         out: dict[str, object] = {"actuation": self.kind, "muscle_names": json.dumps(list(self.muscles.names))}
+        if self.activation_dynamics:
+            out["activation_dynamics"] = True
         if self.residuals is not None:
             out["residual_coupling"] = self.residuals.coupling_kind
         if hasattr(self.geometry, "to_json"):
@@ -214,15 +237,26 @@ class MuscleActuators(ActuationLayer):
         return ca.vertcat(u[: self.n_muscles, :], self.residuals.target_loads(u[self.n_muscles :, :]))
 
     def effective_activation(self, u: Expr, m: Expr | None) -> Expr:
-        """The activation the force uses (module docstring): the activations in ``u``, or the
-        muscles' active fractions under the ``active`` coupling (rows of ``m``)."""
+        """The activation the force uses (module docstring): the activations in ``u``, the
+        muscles' active fractions under the ``active`` coupling, or their activation states with
+        activation dynamics (rows of ``m``)."""
         nm = self.n_muscles
-        if self._coupling != "active":
+        if self._coupling != "active" and not self.activation_dynamics:
             return u[:nm, :] if isinstance(u, (ca.SX, ca.MX, ca.DM)) else np.asarray(u)[..., :nm]
         if m is None:
-            raise ParameterError("coupling 'active': the muscle force follows m_active; expected the fatigue states m")
-        rows = self.active_rows()[:nm]
+            raise ParameterError("the muscle force follows a state (m_active, or the activation); expected the fatigue states m")
+        rows = self.force_state_rows()
         return m[rows, :] if isinstance(m, (ca.SX, ca.MX, ca.DM)) else np.asarray(m)[..., rows]
+
+    def force_state_rows(self) -> list[int]:
+        """Rows of the states the muscles' forces follow, (nm,): each muscle's activation state
+        with activation dynamics, its active fraction under the ``active`` coupling; empty
+        otherwise (the force follows the control)."""
+        if self.activation_dynamics:
+            return [int(r) for r in self.state_rows(ACTIVATION)[: self.n_muscles]]
+        if self._coupling == "active":
+            return self.active_rows()[: self.n_muscles]
+        return []
 
     def _residual_torque(self, u: Expr, m: Expr | None, y: Expr) -> Expr | None:
         """The residual torques' joint torque (nv, K) or (..., nv), or None without them."""

@@ -104,13 +104,11 @@ def invariant_checks(s: Stored) -> tuple[list[VerifyCheck], float, float, str]:
     Returns:
         the two lines, the worst value, the value at the last node and the sums per model kind.
     """
-    off = s.offsets
-    sums = np.column_stack([s.M[:, off[i]:off[i + 1]].sum(axis=1) for i in range(len(s.halves))])
-    inv = np.abs(1.0 - sums)
+    inv = s.invariant(s.M)
     invariant, at_inv = worst(inv, [h.name for h in s.halves], "node")
     last = inv[-1][np.isfinite(inv[-1])]
     inv_final = float(last.max()) if last.size else 0.0
-    kinds = {h.kind: " + ".join(h.states) for h in s.halves}
+    kinds = {h.kind: " + ".join(h.model.total_states()) for h in s.halves}
     invariant_sum = "; ".join(f"{k}: {v}" for k, v in kinds.items())
     name_sum = next(iter(kinds.values())) if len(kinds) == 1 else "sum of each half's states"
     checks = [

@@ -263,10 +263,6 @@ def coarse_grid_note(s: Stored, gaps: GapResult) -> str | None:
     return None
 
 
-def _invariant(s: Stored, M: np.ndarray) -> np.ndarray:
-    off = s.offsets
-    return np.abs(1.0 - np.column_stack([M[:, off[i]:off[i + 1]].sum(axis=1) for i in range(len(s.halves))]))
-
 
 def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report: VerifyReport,
                     advance: Callable[[int], None] = _no_progress) -> None:
@@ -310,7 +306,7 @@ def single_shooting(s: Stored, dyn: Dynamics, ref: ReferenceIntegration, report:
     dm, at_dm = worst(np.abs(ms - M), s.state_labels, "node")
     if stopped is not None:
         dm, at_dm = float("inf"), f"failed on interval {stopped}"
-    inv_ss, inv = _invariant(s, ms), _invariant(s, M)
+    inv_ss, inv = s.invariant(ms), s.invariant(M)
     d_inv, at_di = worst(np.abs(inv_ss - inv), [h.name for h in s.halves], "node")
     report.drift_q, report.drift_qdot, report.drift_fatigue, report.drift_invariant = dq, dv, dm, d_inv
     top = float(np.nanmax(inv_ss)) if inv_ss.size and np.isfinite(inv_ss).any() else 0.0

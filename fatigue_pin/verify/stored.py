@@ -75,8 +75,9 @@ class Stored:
         muscles: a muscle run's muscles on its model, evaluated on numbers
             (:class:`~fatigue_pin.verify.muscle_torque.NumericMuscles`), or None; their torque at
             the activations ``activations`` (N, nm) adds to ``tau`` (then the residual torques).
-        active: under the ``active`` coupling, the columns of M of each muscle's active fraction,
-            which is then its activation (the rigid body is integrated with the fatigue states);
+        active: the columns of M of the states each muscle's force follows, which are then its
+            activations (the rigid body is integrated with the fatigue states): its active
+            fraction under the ``active`` coupling, its activation with activation dynamics;
             None: the activations are the stored controls.
     """
 
@@ -120,6 +121,14 @@ class Stored:
         """Start of each half's states in the columns of M (and the end of the last)."""
         return np.cumsum([0, *(len(h.states) for h in self.halves)])
 
+    def invariant(self, M: np.ndarray) -> np.ndarray:
+        """``|1 - sum|`` of each half's states that its model sums to 1
+        (:meth:`~fatigue_pin.fatigue.interface.FatigueModel.total_states`), (nodes, halves), from
+        fatigue states M laid out as :attr:`M`."""
+        off = self.offsets
+        cols = [[off[i] + h.states.index(n) for n in h.model.total_states()] for i, h in enumerate(self.halves)]
+        return np.abs(1.0 - np.column_stack([M[:, c].sum(axis=1) for c in cols]))
+
     @property
     def state_labels(self) -> list[str]:
         return [f"{h.name} {s}" for h in self.halves for s in h.states]
@@ -152,9 +161,17 @@ def rebuild(run: RunResult) -> Stored:
     M = np.column_stack(cols).astype(float) if cols else np.zeros((N + 1, 0))
     muscles, activations = _muscles(run, robot, notes)
     active = None
-    if coupling == "active":  # each muscle's force follows its active fraction, a state: its column of M
+    if coupling == "active" or run.attrs.get("activation_dynamics"):
+        # each muscle's force follows a state (its active fraction, or its activation): its column of M
+        from fatigue_pin.muscles.activation import ACTIVATION
+
         offsets = np.cumsum([0, *(len(h.states) for h in halves)])
-        active = [int(offsets[i] + h.states.index(h.model.active_state)) for i, h in enumerate(halves[: len(run.muscle_names)])]
+        state = (lambda h: ACTIVATION) if run.attrs.get("activation_dynamics") else (lambda h: h.model.active_state)
+        muscle_halves = halves[: len(run.muscle_names)]
+        lacking = [h.name for h in muscle_halves if state(h) not in h.states]
+        if lacking:
+            raise ResultFileError(f"run {run.name!r}: the forces of muscles {lacking} follow a state their models do not have")
+        active = [int(offsets[i] + h.states.index(state(h))) for i, h in enumerate(muscle_halves)]
     return Stored(run=run, robot=robot, task=task, halves=halves, limits=limits, horizon=horizon, dt=dt, n=n,
                   substeps=substeps, Y=np.hstack([run.q, run.qdot]).astype(float), M=M,
                   tau=np.asarray(run.tau_plus + run.tau_minus, dtype=float), TL=run.target_loads(), notes=notes,
@@ -353,7 +370,8 @@ def _fatigue_params(run: RunResult) -> dict[str, dict]:
 
 def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
     """The actuator halves from the ``fatigue_params`` attribute."""
-    from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model
+    from fatigue_pin.fatigue.models import FATIGUE_MODELS
+    from fatigue_pin.muscles.activation import SUFFIX, unit_model
 
     per_half = _fatigue_params(run)
     if len(run.actuator_names) != limits.size:
@@ -364,10 +382,11 @@ def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
             raise ResultFileError(f"run {run.name!r}: fatigue_params has no entry for half {name!r}; it has {sorted(per_half)}")
         values = dict(per_half[name])
         kind = values.pop("model", "xia")
-        if kind not in FATIGUE_MODELS:
-            raise ResultFileError(f"run {run.name!r}: half {name!r} uses fatigue model {kind!r}, unknown here; known: {sorted(FATIGUE_MODELS)}")
+        if kind.removesuffix(SUFFIX) not in FATIGUE_MODELS:
+            raise ResultFileError(f"run {run.name!r}: half {name!r} uses fatigue model {kind!r}, unknown here; known: {sorted(FATIGUE_MODELS)} "
+                                  f"(muscles with activation dynamics: {SUFFIX!r} after one)")
         try:
-            model = fatigue_model(kind, **values)
+            model = unit_model(kind, **values)
         except (FatiguePinError, TypeError) as exc:
             raise ResultFileError(f"run {run.name!r}: fatigue parameters of half {name!r}: {exc}") from None
         params = model.as_dict()
