@@ -41,7 +41,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
-from fatigue_pin.ocp.actuators import SignedTorqueActuators
+from fatigue_pin.ocp.actuation_layer import ActuationLayer
 from fatigue_pin.ocp.transcription import IntervalFunctions
 from fatigue_pin.core.text import shown
 
@@ -118,7 +118,7 @@ class OpenLoopEstimator:
 
     kind = "open-loop"
 
-    def __init__(self, functions: IntervalFunctions, actuators: SignedTorqueActuators) -> None:
+    def __init__(self, functions: IntervalFunctions, actuators: ActuationLayer) -> None:
         self.functions = functions
         self.actuators = actuators
         #: the fatigue parameters the controller plans with (n_params,)
@@ -146,7 +146,7 @@ class MheEstimator(OpenLoopEstimator):
 
     kind = "mhe"
 
-    def __init__(self, functions: IntervalFunctions, actuators: SignedTorqueActuators, settings: MheSettings,
+    def __init__(self, functions: IntervalFunctions, actuators: ActuationLayer, settings: MheSettings,
                  intervals_per_cycle: int) -> None:
         super().__init__(functions, actuators)
         self.settings = settings
@@ -178,7 +178,7 @@ class MheEstimator(OpenLoopEstimator):
         if L in self._solvers:
             return self._solvers[L]
         s, A = self.settings, self.actuators
-        ns, nu, nh, ne, npar = A.n_states, 2 * A.nv, A.n_halves, self.index.size, A.n_params
+        ns, nu, nh, ne, npar = A.n_states, A.nu, A.n_halves, self.index.size, A.n_params
         m0, theta = ca.MX.sym("m0", ns), ca.MX.sym("theta", ne)
         U, Y, YM = ca.MX.sym("U", nu, L), ca.MX.sym("Y", nh, L + 1), ca.MX.sym("YM", nh, L + 1)
         TL, SM = ca.MX.sym("TL", nh, L), ca.MX.sym("SM", nh, L)
@@ -250,7 +250,7 @@ class MheEstimator(OpenLoopEstimator):
         return cmd - dlv > 1e-9
 
 
-def make_estimator(kind: str, functions: IntervalFunctions, actuators: SignedTorqueActuators,
+def make_estimator(kind: str, functions: IntervalFunctions, actuators: ActuationLayer,
                    mhe: MheSettings | None = None, intervals_per_cycle: int = 1) -> OpenLoopEstimator:
     """The estimator named ``kind`` (:data:`ESTIMATORS`)."""
     if kind == "open-loop":

@@ -21,6 +21,9 @@ reached, also past its last whole cycle)::
     plan_x, plan_u                    the last converged plan (for resuming)
     tail_x, tail_u                    the plant's nodes and delivered torques past its last whole cycle
 
+and, before them, what the actuation kind records of any run (a muscle run: each muscle's force
+and the joint torque at the start of every interval, ``muscle_force``, ``joint_torque``).
+
 :func:`prediction_run` and :func:`estimate_run` give the prediction and the estimate as runs of
 their own (for figures and comparisons).
 """
@@ -108,6 +111,7 @@ def to_run(loop: ClosedLoop, state: LoopState, name: str, study: str = "", label
     run = to_run_result(loop.ocp, np.arange(end + 1) * loop.problem.task.dt, x[: end + 1], u[:end],
                         _cycle_costs(loop, x, u, cycles), name, attrs, wall, study=study)
     run.extras = {
+        **run.extras,  # the actuation kind's record (a muscle run's forces and joint torques)
         "measured": np.array(state.y), "prediction": np.array(state.prediction), "estimate": np.array(h.m),
         "u_command": np.array(h.u_command).reshape(-1, L.nu), "replans": table,
         "params": np.array(state.params).reshape(len(state.params), loop.problem.actuators.n_params), "probe_nodes": np.array(probes, dtype=int),

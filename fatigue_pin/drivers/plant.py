@@ -12,7 +12,7 @@ length dt it
 3. integrates ``qddot = ABA(q, qdot, tau + d)``, tau the actuators' joint torque (the halves'
    sum, 0 on passive joints, or under the ``active`` coupling ``sum ma * limit``; numeric Pinocchio on the
    plant's model) and ``dm/dt`` of every half (its fatigue model's right-hand side, evaluated
-   by :meth:`SignedTorqueActuators.fatigue_rates`) with scipy's adaptive ``solve_ivp``
+   by :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.fatigue_rates`) with scipy's adaptive ``solve_ivp``
    (``integrator = "rk45"``, the default, with ``rtol`` and ``atol``: the plant stands for
    reality, so it follows the exact flow), or with ``substeps`` classical RK4 steps
    (``integrator = "rk4"``: with the controller's substeps a plant equal to the model integrates
@@ -224,7 +224,8 @@ class Plant:
         """``dx/dt`` (nx,) under the delivered torques ``u`` (nu,) and disturbance ``d`` (nv,)."""
         L = self.layout
         q, v = x[L.q], x[L.v]
-        tau = self.actuators.joint_torque(u, x[L.m]) + d  # the actuators' torque (0 on passive joints)
+        # the actuators' torque (0 on passive joints; muscles': at this q and qdot)
+        tau = self.actuators.joint_torque(u, x[L.m], np.concatenate([q, v])) + d
         a = pin.aba(self.model.pin_model, self._data, q, v, tau)
         m = np.asarray(self._rates(x[L.m], u)).reshape(-1)
         return np.concatenate([v, a, m])

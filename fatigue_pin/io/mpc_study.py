@@ -144,10 +144,6 @@ class MpcStudy:
         study = Study.from_dict(data)
         if base_changes:
             study = study.replace(base_changes)
-        kind = study.actuation().kind
-        if kind != "torque":  # before any work: the plant and the estimator integrate torque halves
-            raise StudyError(f"actuators.kind = {kind!r}: the closed loop drives torque halves only; expected kind = \"torque\", "
-                             "or a full or sliding horizon (fatigue-pin run) for a muscle study")
         plant_table = tables.get("plant", {})
         if not isinstance(plant_table, dict):
             raise StudyError(f"plant = {shown(plant_table)}: expected a table")

@@ -180,13 +180,19 @@ def shifted_window_guess(ocp: Ocp, x_init: np.ndarray, x_prev: np.ndarray, u_pre
 
     ``intervals``: the window advances by this many intervals instead of ``advance`` cycles (a
     closed loop re-planning mid-cycle): the n intervals starting there (or whole cycles earlier,
-    when fewer than n remain) are copied, so the guess has the new window's phase.
+    when fewer than n remain) are copied, so the guess has the new window's phase. A window of one
+    cycle has no whole cycle earlier: the intervals past its end are taken one cycle earlier, from
+    its start (the cycle's same phase).
     ``fatigue``: the fatigue parameters of the integration (default the actuators')."""
     n, K = ocp.task.intervals_per_cycle, ocp.n_cycles
     shift = advance * n if intervals is None else int(intervals)
     start = shift - n * max(0, -(-(shift - (K - 1) * n) // n))  # at most (K - 1) n, same phase
-    u = np.tile(u_prev[start : start + n], (K, 1))
-    xs = np.vstack([np.tile(x_prev[start : start + n], (K, 1)), x_prev[start + n][None, :]])
+    if start >= 0:
+        rows = np.arange(start, start + n)
+    else:  # K = 1, re-planned mid-cycle: the intervals shift..n-1, then 0..shift-1
+        rows = (np.arange(n) + shift) % n
+    u = np.tile(u_prev[rows], (K, 1))
+    xs = np.vstack([np.tile(x_prev[rows], (K, 1)), x_prev[rows[-1] + 1][None, :]])
     if copy_fatigue:
         return xs, u
     L = ocp.layout

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from conftest import small_curl
-from fatigue_pin.cli.main import main
 from fatigue_pin.core.errors import FatiguePinError
 from fatigue_pin.io.study import Study, StudyError
 from fatigue_pin.muscles.geometry import MuscleGeometry
@@ -85,13 +84,3 @@ def test_muscle_keys_that_need_muscles_are_refused_on_torque_halves(arm26):
         small_curl("full").replace({"fatigue.muscles": {"BRA": {"F": 0.1}}}).actuators(arm26)
     with pytest.raises(StudyError, match=r"actuators.kind = 'motors': expected one of \['torque', 'muscles'\]"):
         small_curl("full").replace({"actuators.kind": "motors"})
-
-
-def test_a_closed_loop_of_muscles_is_refused_before_any_work(tmp_path, capsys):
-    """The closed loop's plant and estimator integrate torque halves: a muscle study says so in one line."""
-    path = tmp_path / "muscles_mpc.toml"
-    path.write_text(muscle_study(**{"horizon.kind": "sliding", "horizon.max_cycles": 3}).to_toml() + "\n[mpc]\n")
-    assert main(["mpc", str(path), "--out", str(tmp_path / "m.h5")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "actuators.kind = 'muscles': the closed loop drives torque halves only" in err[0]
-    assert not (tmp_path / "m.h5").exists()

@@ -22,3 +22,21 @@ def test_resample_guess_stretches_cycles_in_time(build):
     three = build(3)
     _, u3 = resample_guess(three, sol)
     assert np.allclose(u3[n : 2 * n], sol.u[:n]) and np.allclose(u3[2 * n :], sol.u[n:])
+
+
+def test_a_one_cycle_window_re_planned_mid_cycle_is_guessed_in_its_new_phase(build):
+    """A closed loop with one-cycle windows re-planning at interval 3 of n: there is no whole cycle
+    earlier to copy, so the guess takes intervals 3..n-1 of the previous plan, then 0..2 (the same
+    phases a cycle earlier). (It used to slice from interval 3 - n < 0: an empty guess.)"""
+    from fatigue_pin.ocp.guesses import shifted_window_guess
+
+    one = build(1)
+    sol = one.solve()
+    n = one.task.intervals_per_cycle
+    x, u = shifted_window_guess(one, sol.x[3], sol.x, sol.u, 0, copy_fatigue=True, intervals=3)
+    assert x.shape == sol.x.shape and u.shape == sol.u.shape
+    order = [*range(3, n), 0, 1, 2]
+    assert np.array_equal(u, sol.u[order]) and np.array_equal(x[:-1], sol.x[order]) and np.array_equal(x[-1], sol.x[3])
+    # with its fatigue states integrated from the new start instead
+    x2, u2 = shifted_window_guess(one, sol.x[3], sol.x, sol.u, 0, intervals=3)
+    assert np.array_equal(u2, u) and np.allclose(x2[0], sol.x[3])
