@@ -51,6 +51,7 @@ __all__ = [
     "FatigueParams",
     "FATIGUE_MODELS",
     "fatigue_model",
+    "model_of_class",
     "STATE_NAMES",
     "PARAM_NAMES",
     "PARAM_UNITS",
@@ -140,7 +141,16 @@ def fatigue_model(kind: str, **params: float) -> FatigueModel:
     """
     if kind not in FATIGUE_MODELS:
         raise ParameterError(f"fatigue model {kind!r} is unknown; expected one of {sorted(FATIGUE_MODELS)}")
-    cls = FATIGUE_MODELS[kind]
+    return model_of_class(FATIGUE_MODELS[kind], **params)
+
+
+def model_of_class(cls: type[FatigueModel], **params: float) -> FatigueModel:
+    """A model of class ``cls`` with its parameter values (and options) by name.
+
+    Raises:
+        ParameterError: unknown or missing parameter names, or bad values (named by ``cls.kind``).
+    """
+    kind = cls.kind
     unknown = sorted(set(params) - set(cls.param_names) - set(cls.option_names))
     if unknown:
         raise ParameterError(f"fatigue model {kind!r} has no parameter(s) {unknown}; its parameters are {list(cls.param_names)}")

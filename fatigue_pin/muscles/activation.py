@@ -33,7 +33,7 @@ import numpy as np
 from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.core.text import shown
 from fatigue_pin.fatigue.interface import STABILITY_LIMITS, FatigueModel
-from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model
+from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model, model_of_class
 from fatigue_pin.muscles.curves import activation_rate
 
 __all__ = ["ACTIVATION", "SUFFIX", "ActivatedFatigue", "activated", "with_activation", "unit_model", "activation_stiffness"]
@@ -165,11 +165,4 @@ def unit_model(kind: str, **params: float) -> FatigueModel:
     base = kind[: -len(SUFFIX)]
     if base not in FATIGUE_MODELS:
         raise ParameterError(f"fatigue model {kind!r} is unknown; expected one of {sorted(FATIGUE_MODELS)}, with or without {SUFFIX!r}")
-    cls = activated(FATIGUE_MODELS[base])
-    unknown = sorted(set(params) - set(cls.param_names) - set(cls.option_names))
-    if unknown:
-        raise ParameterError(f"fatigue model {kind!r} has no parameter(s) {unknown}; its parameters are {list(cls.param_names)}")
-    try:
-        return cls(**params)
-    except TypeError as exc:
-        raise ParameterError(f"fatigue model {kind!r}: {exc}") from None
+    return model_of_class(activated(FATIGUE_MODELS[base]), **params)
