@@ -39,6 +39,7 @@ from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.muscles.activation import ACTIVATION, with_activation
 from fatigue_pin.muscles.muscle import Muscle
 from fatigue_pin.muscles.muscle_set import MuscleSet
+from fatigue_pin.muscles.polynomial_paths import PolynomialPaths
 from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr, RunRecord
 from fatigue_pin.ocp.actuators import SignedTorqueActuators
 
@@ -208,7 +209,7 @@ class MuscleActuators(ActuationLayer):
             out["activation_dynamics"] = True
         if self.residuals is not None:
             out["residual_coupling"] = self.residuals.coupling_kind
-        if hasattr(self.geometry, "to_json"):
+        if isinstance(self.geometry, PolynomialPaths):
             out["muscle_paths"] = self.geometry.to_json()
         return out
 
