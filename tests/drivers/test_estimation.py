@@ -90,3 +90,32 @@ def test_bad_estimator_settings(functions, small_problem):
         with pytest.raises(ParameterError) as err:
             make()
         assert str(err.value).startswith(key) and "\n" not in str(err.value)
+
+
+def test_mhe_with_a_passive_joint_sizes_its_controls_by_the_actuators():
+    """A passive shoulder leaves 2 controls, not 2 nv = 4: the MHE's window takes the actuators'
+    own count (it assumed 2 nv, and its CasADi call failed on the shape). With the elbow flexor's
+    true F twice the model's, one cycle of probes moves its F up."""
+    from conftest import small_curl
+
+    study = small_curl("sliding").replace({"actuators.passive": ["shoulder"]})
+    problem = study.problem()
+    acts = problem.actuators
+    assert acts.nu == 2 and acts.n_halves == 2
+    fn = OcpBuilder(problem, study.transcription(), study.solver())(1).functions
+    est = MheEstimator(fn, acts, MheSettings(cycles=1, params=("F",)), 10)
+    F = acts.halves[0].params.F
+    true = [h.params.with_(F=2 * F) for h in acts.halves]
+    m = acts.initial_state()
+    history = History([m.copy()])
+    truth = m.copy()
+    for k in range(10):
+        u = np.array([0.3 * acts.signed_limits[0], 0.0])
+        truth = solve_ivp(lambda t, y: np.concatenate([p.rates(y[3 * i : 3 * i + 3], u[i] / acts.signed_limits[i]) for i, p in enumerate(true)]),
+                          (0, problem.task.dt), truth, rtol=1e-10, atol=1e-12).y[:, -1]
+        history.u_command.append(u)
+        history.u_delivered.append(u)
+        history.m.append(est.predict(history.m[-1], u))
+    history.probes[10] = 1 - truth[2::3]
+    m_k = est.correct(10, history)
+    assert m_k.shape == (6,) and est.params[est.index][0] > 1.5 * F
