@@ -32,14 +32,16 @@ when logged temperatures are at hand.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping
+from pathlib import Path
 from types import MappingProxyType
 from typing import NamedTuple
 
-from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.core.errors import ParameterError, PresetFileError
 from fatigue_pin.motors.motor import MotorParameters
 
-__all__ = ["MotorPreset", "MOTOR_PRESETS", "ROBOT_MOTORS", "motor_preset", "scaled_to"]
+__all__ = ["MotorPreset", "MOTOR_PRESETS", "ROBOT_MOTORS", "motor_preset", "load_motor_json", "scaled_to"]
 
 
 class MotorPreset(NamedTuple):
@@ -107,17 +109,42 @@ ROBOT_MOTORS: Mapping[str, tuple[str, ...]] = MappingProxyType({
 })
 
 
-def motor_preset(name: str, **overrides: float) -> MotorParameters:
-    """The motor of preset ``name`` (a key of :data:`MOTOR_PRESETS`) with ``overrides`` of its
-    fields (e.g. ``gear_ratio=80``, ``T_ambient=35``).
+def load_motor_json(path: str | Path) -> dict[str, float]:
+    """The motor fields of a JSON file written by ``fatigue-pin calibrate-thermal`` (its ``motor``
+    table), unchecked (:func:`motor_preset` checks them).
 
     Raises:
-        ParameterError: unknown name, unknown field or a bad value.
+        PresetFileError: a file that is missing, not JSON, or without a ``motor`` table.
     """
-    if name not in MOTOR_PRESETS:
-        raise ParameterError(f"motor preset {name!r}: expected one of {sorted(MOTOR_PRESETS)}")
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise PresetFileError(f"motor file {str(p)!r} cannot be read as JSON ({exc}): expected the output of "
+                              "fatigue-pin calibrate-thermal") from None
+    motor = data.get("motor") if isinstance(data, dict) else None
+    if not isinstance(motor, dict):
+        raise PresetFileError(f"motor file {str(p)!r} has no 'motor' table: expected the output of fatigue-pin calibrate-thermal")
+    return motor
+
+
+def motor_preset(name: str, **overrides: float) -> MotorParameters:
+    """The motor of preset ``name`` (a key of :data:`MOTOR_PRESETS`, or a ``.json`` file written by
+    ``fatigue-pin calibrate-thermal``) with ``overrides`` of its fields (e.g. ``gear_ratio=80``,
+    ``T_ambient=35``).
+
+    Raises:
+        ParameterError: unknown name, unknown field or a bad value (PresetFileError: a bad file).
+    """
+    if name.endswith(".json"):
+        values = load_motor_json(name)
+    elif name in MOTOR_PRESETS:
+        values = dict(MOTOR_PRESETS[name].values)
+    else:
+        raise ParameterError(f"motor preset {name!r}: expected one of {sorted(MOTOR_PRESETS)} or a .json file "
+                             "of fatigue-pin calibrate-thermal")
     fields = {f.name for f in dataclasses.fields(MotorParameters)}
-    unknown = sorted(set(overrides) - fields)
+    unknown = sorted((set(overrides) | set(values)) - fields)
     if unknown:
         raise ParameterError(f"motor preset {name!r}: unknown field {unknown[0]!r}; expected one of {sorted(fields)}")
-    return MotorParameters(**{**MOTOR_PRESETS[name].values, **overrides})
+    return MotorParameters(**{**values, **overrides})

@@ -95,3 +95,16 @@ def test_bad_motor_on_the_line_is_exit_2(tmp_path, capsys):
     (tmp_path / "log.csv").write_text("time_s,current_A,winding_C\n0,1,2\n")
     assert main(["calibrate-thermal", str(tmp_path / "log.csv"), "--motor", "maxon-re99", "--out", str(tmp_path / "f.json")]) == 2
     assert "ThermalCalibrationSettings.motor = 'maxon-re99': expected a motor preset name" in capsys.readouterr().err
+
+
+def test_a_fit_is_a_motor_preset(tmp_path):
+    t = np.arange(0.0, 2400.0, 4.0)
+    R25 = motor_preset("maxon-re30").R25
+    T = 25.0 + step_from_ambient(*TRUTH.values(), R25 * 4.0, t)[:, 0]
+    fit = calibrate_thermal(ThermalLog(t, np.full_like(t, 2.0), T, "winding"), motor="maxon-re30", alpha=0.0, no_load_loss=0.0)
+    path = fit.write_json(tmp_path / "fit.json")
+    motor = motor_preset(str(path), gear_ratio=101.0)
+    assert motor == dataclasses.replace(fit.motor, gear_ratio=101.0)
+    (tmp_path / "bad.json").write_text('{"rms_K": 1}')
+    with pytest.raises(ParameterError, match=r"bad\.json' has no 'motor' table: expected the output of"):
+        motor_preset(str(tmp_path / "bad.json"))
