@@ -71,6 +71,7 @@ _API: dict[str, str] = {
     "SignedTorqueActuators": "fatigue_pin.ocp.actuators",
     "ActuationLayer": "fatigue_pin.ocp.actuation_layer",
     "MuscleActuators": "fatigue_pin.ocp.muscle_actuators",
+    "MotorActuators": "fatigue_pin.ocp.motor_actuators",
     "Actuation": "fatigue_pin.ocp.actuation",
     "Task": "fatigue_pin.ocp.task",
     "JointTarget": "fatigue_pin.ocp.task_items",
