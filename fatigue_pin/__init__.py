@@ -61,10 +61,17 @@ _API: dict[str, str] = {
     "MuscleGeometry": "fatigue_pin.muscles.geometry",
     "FixedMomentArms": "fatigue_pin.muscles.geometry",
     "load_muscles": "fatigue_pin.muscles.files",
+    # motors
+    "ThermalNetwork": "fatigue_pin.motors.thermal",
+    "MotorParameters": "fatigue_pin.motors.motor",
+    "motor_preset": "fatigue_pin.motors.presets",
+    "MotorThermal": "fatigue_pin.motors.thermal_states",
+    "calibrate_thermal": "fatigue_pin.motors.calibration",
     # optimal control problem
     "SignedTorqueActuators": "fatigue_pin.ocp.actuators",
     "ActuationLayer": "fatigue_pin.ocp.actuation_layer",
     "MuscleActuators": "fatigue_pin.ocp.muscle_actuators",
+    "MotorActuators": "fatigue_pin.ocp.motor_actuators",
     "Actuation": "fatigue_pin.ocp.actuation",
     "Task": "fatigue_pin.ocp.task",
     "JointTarget": "fatigue_pin.ocp.task_items",

@@ -56,6 +56,7 @@ PYTHON: dict[tuple[str, int], dict] = {
     ("muscles.md", 0): {},  # the geometry only: no solve
     ("muscles.md", 1): {},  # the muscle torque at one state: no solve
     ("muscles.md", 2): {},  # a muscle study and its layer: no solve
+    ("motors.md", 0): {},  # a preset's steady state: no solve
     ("results.md", 0): {},  # results/forward/forward_studies.h5 is made by the fixture
     ("studies.md", 0): {"prelude": "from dataclasses import dataclass\nfrom fatigue_pin.core.settings import is_number, setting\n"
                                    "@dataclass(frozen=True)\nclass Example:\n", "indent": True},

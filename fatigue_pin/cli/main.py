@@ -422,6 +422,9 @@ def build_parser() -> argparse.ArgumentParser:
     from fatigue_pin.cli.mpc import register as register_mpc_command
 
     register_mpc_command(sub)  # mpc
+    from fatigue_pin.cli.motors import register as register_motor_commands
+
+    register_motor_commands(sub)  # calibrate-thermal
     return parser
 
 

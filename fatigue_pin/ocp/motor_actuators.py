@@ -1,0 +1,190 @@
+"""Motors as an actuation kind: one motor per actuated joint, its signed torque the control, its
+winding and housing temperatures the capacity states (docs/motors.md).
+
+With na actuated joints of nv:
+
+* controls ``u = tau`` (na,), the joint torques (N m), in ``[-limit, limit]`` (the joint's torque
+  limit, the smaller of the model's two);
+* target loads ``TL = tau / limit`` (signed; heat goes with ``TL^2``);
+* the joint torque is ``u`` on the actuated joints, 0 on passive ones;
+* capacity states: each motor's :class:`~fatigue_pin.motors.thermal_states.MotorThermal`
+  ``(xw, xh)``, the rises over ambient over the rise the limit allows, so that the [0, 1] bounds
+  of the OCPs' fatigue states are ``T_w <= T_max - margin``. The coupling is ``observed`` (the
+  ``tl+mf<=1`` rows have no meaning for heat; the limit is the state bound).
+
+Friction and the no-load loss's speed dependence are not in the states (the states see the torque
+only); the no-load loss is constant (:mod:`fatigue_pin.motors.motor`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.motors.motor import MotorParameters
+from fatigue_pin.motors.thermal_states import MotorThermal
+from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr, RunRecord
+
+__all__ = ["MotorUnit", "MotorActuators"]
+
+
+@dataclass(frozen=True)
+class MotorUnit:
+    """One joint's motor as a unit of the actuation layer.
+
+    Attributes:
+        name: the joint's name.
+        params: its temperature states' model.
+        motor: the motor.
+        limit: the joint's torque limit (N m), > 0: the controls' bound and TL = 1.
+    """
+
+    name: str
+    params: MotorThermal
+    motor: MotorParameters
+    limit: float
+
+
+class MotorActuators(ActuationLayer):
+    """A motor on every actuated joint (module docstring).
+
+    Args:
+        joint_names: every joint of the model in model order (nv).
+        motors: joint name -> its motor, one per actuated joint (model order is kept).
+        limits: joint name -> its torque limit (N m, > 0), for every joint of ``motors``.
+    """
+
+    units_per_joint = False
+    kind = "motors"
+    torque_follows_state = False
+
+    def __init__(self, joint_names: tuple[str, ...], motors: Mapping[str, MotorParameters], limits: Mapping[str, float]) -> None:
+        unknown = [j for j in motors if j not in joint_names]
+        if unknown:
+            raise ParameterError(f"motor on joint {unknown[0]!r}: expected a joint of the model {list(joint_names)}")
+        if not motors:
+            raise ParameterError("motors: none given; expected a motor on at least one joint")
+        units = []
+        for j in (j for j in joint_names if j in motors):
+            limit = float(limits.get(j, 0.0))
+            if not limit > 0:
+                raise ParameterError(f"joint {j!r}: torque limit {limit!r}: expected > 0 (N m) for a motor")
+            units.append(MotorUnit(j, MotorThermal.from_motor(motors[j], limit), motors[j], limit))
+        self._set_units(tuple(units), tuple(joint_names), "observed", ("motor", "motors"))
+
+    @classmethod
+    def from_model(cls, model, motors: Mapping[str, MotorParameters]) -> "MotorActuators":
+        """The motors on ``model`` (a :class:`~fatigue_pin.robot.model.RobotModel`): each joint's
+        limit is the smaller magnitude of its torque bounds."""
+        limits = {j: float(min(-lo, hi)) for j, lo, hi in zip(model.joint_names, model.tau_lower, model.tau_upper)}
+        return cls(tuple(model.joint_names), motors, limits)
+
+    # -- sizes, bounds, names ----------------------------------------------------------------------
+
+    @property
+    def actuated_index(self) -> list[int]:
+        """Index in the model's joints of each motor's joint, length na."""
+        return [self._joint_names.index(u.name) for u in self._halves]
+
+    @property
+    def n_actuated(self) -> int:
+        """Number of motors (na)."""
+        return len(self._halves)
+
+    @property
+    def nu(self) -> int:
+        """Number of controls: one signed torque per motor."""
+        return self.n_actuated
+
+    @property
+    def limits(self) -> np.ndarray:
+        """Torque limits (N m), (na,)."""
+        return np.array([u.limit for u in self._halves])
+
+    @property
+    def signed_limits(self) -> np.ndarray:
+        """Each unit's control at TL = 1 (N m), (na,): its limit."""
+        return self.limits
+
+    def control_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``[-limit, limit]`` per motor (N m), each (nu,)."""
+        return -self.limits, self.limits
+
+    def control_scales(self, magnitude: np.ndarray) -> np.ndarray:
+        """Scales of the controls (nu,) from a per-joint magnitude (nv,): each motor its joint's."""
+        return np.asarray(magnitude, dtype=float).reshape(-1)[self.actuated_index]
+
+    def structure_key(self) -> str:
+        """What compiled code depends on: joints, limits, the states' equations."""
+        return "motors;" + ";".join(f"{u.name}:{u.limit!r}:{u.params.structure_key()}" for u in self._halves)
+
+    # -- controls and joint torques ------------------------------------------------------------------
+
+    def half_torques(self, u: np.ndarray) -> np.ndarray:
+        """The controls (..., nu) as the units' controls (..., na): the same torques (N m)."""
+        return np.asarray(u, dtype=float).copy()
+
+    def controls(self, unit_controls: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`half_torques`."""
+        return np.asarray(unit_controls, dtype=float).copy()
+
+    def torque_matrix(self) -> np.ndarray:
+        """``B`` (nv, nu) with joint torque = ``B u``."""
+        B = np.zeros((self.nv, self.nu))
+        B[self.actuated_index, range(self.nu)] = 1.0
+        return B
+
+    def per_joint(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The torques (..., nu) as ``(tau_plus, tau_minus)`` (..., nv): their positive and
+        negative parts on their joints (N m)."""
+        tau = np.asarray(u, dtype=float) @ self.torque_matrix().T
+        return np.maximum(tau, 0.0), np.minimum(tau, 0.0)
+
+    def joint_torque(self, u: Expr, m: Expr | None = None, y: Expr | None = None) -> Expr:
+        """Joint torques (N m): CasADi ``u`` (nu, K) -> (nv, K); numpy (..., nu) -> (..., nv)."""
+        if isinstance(u, (ca.SX, ca.MX, ca.DM)):
+            if u.size1() != self.nu:
+                raise DimensionError(f"controls u of shape {u.shape}: expected {self.nu} rows (one torque per motor)")
+            return ca.mtimes(ca.DM(self.torque_matrix()), u)
+        a = np.asarray(u, dtype=float)
+        if a.shape[-1] != self.nu:
+            raise DimensionError(f"controls u of shape {a.shape}: expected {self.nu} columns (one torque per motor)")
+        return a @ self.torque_matrix().T
+
+    def target_loads(self, u: Expr) -> Expr:
+        """``tau / limit`` of every motor, (na, K) (signed)."""
+        u = u if isinstance(u, (ca.SX, ca.MX, ca.DM)) else ca.DM(np.asarray(u, dtype=float).reshape(-1, self.nu).T)
+        return u / ca.repmat(ca.DM(self.limits), 1, u.size2())
+
+    def controls_for_torques(self, tau: np.ndarray, q: np.ndarray | None = None, qdot: np.ndarray | None = None) -> np.ndarray:
+        """Controls (N, nu) for joint torques (N, nv): the motors' joints' torques, clipped to the limits."""
+        return np.clip(np.asarray(tau, dtype=float)[:, self.actuated_index], -self.limits, self.limits)
+
+    # -- temperatures and records ----------------------------------------------------------------------
+
+    def temperatures(self, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Winding and housing temperatures (deg C), each (..., na), from the states (..., n_states)."""
+        m = np.asarray(m, dtype=float)
+        T_a = np.array([u.motor.T_ambient for u in self._halves])
+        D = np.array([u.motor.T_limit for u in self._halves]) - T_a
+        return T_a + D * m[..., 0::2], T_a + D * m[..., 1::2]
+
+    def run_record(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray, m: np.ndarray) -> RunRecord:
+        """The motors' torques, and their winding and housing temperatures at the start of every
+        interval (``winding_C``, ``housing_C``, (N, na))."""
+        T_w, T_h = self.temperatures(m)
+        return RunRecord(self.half_torques(u), "", {"winding_C": T_w, "housing_C": T_h})
+
+    def run_record_attributes(self) -> dict[str, object]:
+        """``actuation = "motors"`` and ``motors``: JSON of joint -> the motor's fields and limit."""
+        table = {u.name: {**dataclasses.asdict(u.motor), "limit": u.limit} for u in self._halves}
+        return {"actuation": self.kind, "motors": json.dumps(table)}
+
+    def __repr__(self) -> str:
+        return "MotorActuators(" + ", ".join(f"{u.name}: {u.limit:g} N m" for u in self._halves) + ")"
