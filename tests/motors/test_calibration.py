@@ -12,7 +12,7 @@ from fatigue_pin.core.errors import CalibrationDataError, ParameterError
 from fatigue_pin.motors.calibration import ThermalLog, calibrate_thermal, read_thermal_csv, simulate
 from fatigue_pin.motors.presets import motor_preset
 
-from tests.motors.conftest import integrate, step_from_ambient
+from conftest import integrate, step_from_ambient
 
 TRUTH = {"R_wh": 2.3, "R_ha": 4.5, "tau_w": 25.0, "tau_m": 800.0}  # the RE 30 preset: 1.7, 6.0, 16.9, 593
 

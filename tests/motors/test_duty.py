@@ -11,7 +11,7 @@ from fatigue_pin.motors.calibration import simulate
 from fatigue_pin.motors.duty import cycle_heat_budget, cycle_mean_rise, periodic_orbit
 from fatigue_pin.motors.presets import motor_preset
 
-from tests.motors.conftest import integrate, network_ode
+from conftest import integrate, network_ode
 
 
 def test_the_periodic_orbit_is_where_repeated_cycles_go():

@@ -10,7 +10,7 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.motors.motor import MotorParameters
 from fatigue_pin.motors.presets import MOTOR_PRESETS, ROBOT_MOTORS, motor_preset, scaled_to
 
-from tests.motors.conftest import integrate
+from conftest import integrate
 
 
 def test_re30_at_nominal_current_reaches_its_T_max_in_steady_state():

@@ -9,7 +9,7 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.motors.presets import MOTOR_PRESETS
 from fatigue_pin.motors.thermal import ThermalNetwork
 
-from tests.motors.conftest import integrate, network_ode, step_from_ambient
+from conftest import integrate, network_ode, step_from_ambient
 
 NETWORKS = {name: ThermalNetwork(*(p.values[k] for k in ("R_wh", "R_ha", "tau_w", "tau_m")))
             for name, p in MOTOR_PRESETS.items() if name.startswith("maxon")}

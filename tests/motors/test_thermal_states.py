@@ -9,7 +9,7 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.motors.presets import motor_preset
 from fatigue_pin.motors.thermal_states import MotorThermal
 
-from tests.motors.conftest import integrate, step_from_ambient
+from conftest import integrate, step_from_ambient
 
 
 @pytest.mark.parametrize("name", ["maxon-re30", "ur5/size3"])

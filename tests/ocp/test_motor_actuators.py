@@ -3,6 +3,8 @@ and a short full-horizon UR5 solve whose temperatures are re-integrated independ
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -10,7 +12,7 @@ from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.motors.presets import ROBOT_MOTORS, motor_preset
 from fatigue_pin.ocp.motor_actuators import MotorActuators
 
-from tests.motors.conftest import integrate
+from conftest import integrate
 
 JOINTS = ("a", "b", "c")
 
@@ -53,7 +55,7 @@ def test_a_short_ur5_full_horizon_with_motors_and_its_temperatures():
     from fatigue_pin.io.study import Study
     from fatigue_pin.ocp.problem import Problem
 
-    study = Study.from_file("studies/ur5_lift_swing.toml").replace({"task.intervals_per_cycle": 10, "solver.compile": False})
+    study = Study.from_file(Path(__file__).resolve().parents[2] / "studies" / "ur5_lift_swing.toml").replace({"task.intervals_per_cycle": 10, "solver.compile": False})
     model = study.model()
     layer = MotorActuators.from_model(model, {j: motor_preset(p) for j, p in zip(model.joint_names, ROBOT_MOTORS["ur5"])})
     problem = Problem(model, layer, study.task(), tuple(study.costs()))
