@@ -180,6 +180,72 @@ struct Block {
   Mat E;      // S^{-1} C^T after factorisation (size x rows.size())
 };
 
+// Breadth-first levels over the non-slack primal variables [0, p): the order sorts by (level,
+// index), levels counted from a pseudo-peripheral start (George-Liu), component after component.
+IVec primal_levels(int p, const std::vector<std::vector<int>>& adj, const IVec& slack_row) {
+  std::vector<std::vector<int>> nb(p);
+  for (int i = 0; i < p; ++i) {
+    if (slack_row[i] >= 0) continue;
+    for (int j : adj[i]) {
+      if (j < p) {
+        if (slack_row[j] < 0) nb[i].push_back(j);
+      } else {
+        for (int k : adj[j])
+          if (k < p && k != i && slack_row[k] < 0) nb[i].push_back(k);
+      }
+    }
+    std::sort(nb[i].begin(), nb[i].end());
+    nb[i].erase(std::unique(nb[i].begin(), nb[i].end()), nb[i].end());
+  }
+  IVec level(p, -1), comp_mark(p, 0), queue;
+  queue.reserve(p);
+  auto bfs = [&](int start, IVec& dist, const IVec& members) {
+    for (int v : members) dist[v] = -1;
+    queue.clear();
+    queue.push_back(start);
+    dist[start] = 0;
+    for (size_t h = 0; h < queue.size(); ++h) {
+      const int v = queue[h];
+      for (int w : nb[v])
+        if (dist[w] < 0) {
+          dist[w] = dist[v] + 1;
+          queue.push_back(w);
+        }
+    }
+    return queue.back();
+  };
+  IVec dist(p, -1), result;
+  int offset = 0;
+  for (int s0 = 0; s0 < p; ++s0) {
+    if (slack_row[s0] >= 0 || comp_mark[s0]) continue;
+    // the component
+    IVec members;
+    {
+      IVec tmp(p, -1);
+      bfs(s0, tmp, IVec());
+      members = queue;
+      for (int v : members) comp_mark[v] = 1;
+    }
+    int start = s0, ecc = -1;
+    for (int round = 0; round < 4; ++round) {
+      const int far = bfs(start, dist, members);
+      // among the last level, the variable of least degree
+      int best = far;
+      for (int v : members)
+        if (dist[v] == dist[far] && nb[v].size() < nb[best].size()) best = v;
+      if (dist[far] <= ecc) break;
+      ecc = dist[far];
+      start = best;
+    }
+    bfs(start, dist, members);
+    std::sort(members.begin(), members.end(), [&](int a, int b) { return dist[a] != dist[b] ? dist[a] < dist[b] : a < b; });
+    for (int v : members) level[v] = offset + dist[v];
+    offset += ecc + 2;
+    result.insert(result.end(), members.begin(), members.end());
+  }
+  return result;
+}
+
 struct Solver {
   int n = 0, nz = 0;
   IVec order;  // position -> index
@@ -225,12 +291,18 @@ struct Solver {
     std::vector<std::vector<int>> slacks_of(n);
     for (int i = 0; i < p; ++i)
       if (slack_row[i] >= 0) slacks_of[slack_row[i]].push_back(i);
+    IVec primal_order = primal_levels(p, adj, slack_row);
+    IVec rank(p, -1);
+    for (size_t t = 0; t < primal_order.size(); ++t) rank[primal_order[t]] = static_cast<int>(t);
     for (int r = p; r < n; ++r) {
       int last = -1;
       for (int j : adj[r])
-        if (j < p && slack_row[j] < 0) last = std::max(last, j);
+        if (j < p && slack_row[j] < 0) last = std::max(last, rank[j]);
       rows_after[last + 1].push_back(r);
     }
+    // primal order: breadth-first levels of the primal graph (Hessian couplings and variables
+    // sharing a row) from a pseudo-peripheral variable. In a multiple-shooting OCP the levels are
+    // the stages, whatever the NLP's variable order (states of all nodes, then controls, ...).
     order.clear();
     IVec natural;  // positions where a block may start
     auto emit_rows = [&](const IVec& rows) {
@@ -242,12 +314,11 @@ struct Solver {
     emit_rows(rows_after[0]);
     bool after_row = !rows_after[0].empty();
     natural.push_back(0);
-    for (int i = 0; i < p; ++i) {
-      if (slack_row[i] >= 0) continue;
+    for (size_t t = 0; t < primal_order.size(); ++t) {
       if (after_row) natural.push_back(static_cast<int>(order.size()));
-      order.push_back(i);
-      emit_rows(rows_after[i + 1]);
-      after_row = !rows_after[i + 1].empty();
+      order.push_back(primal_order[t]);
+      emit_rows(rows_after[t + 1]);
+      after_row = !rows_after[t + 1].empty();
     }
     if (static_cast<int>(order.size()) != n) return -1;
     natural.push_back(n);
