@@ -91,9 +91,11 @@ struct DenseLdl {
         }
       }
       const int kk = k + kstep - 1;
-      if (kp != kk) {
-        M.row(kk).swap(M.row(kp));
-        M.col(kk).swap(M.col(kp));
+      if (kp != kk) {  // symmetric interchange in the lower triangle (as LAPACK's dsytf2)
+        M.row(kk).head(kk).swap(M.row(kp).head(kk));
+        if (kp + 1 < n) M.col(kk).tail(n - kp - 1).swap(M.col(kp).tail(n - kp - 1));
+        for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
+        std::swap(M(kk, kk), M(kp, kp));
         std::swap(perm[kk], perm[kp]);
       }
       if (kstep == 1) {
@@ -105,9 +107,8 @@ struct DenseLdl {
         d(k) = dk;
         if (dk < 0) ++negative;
         if (m > 0) {
-          Vec w = M.col(k).tail(m);
-          M.bottomRightCorner(m, m).noalias() -= (w / dk) * w.transpose();
-          M.col(k).tail(m) = w / dk;
+          M.bottomRightCorner(m, m).selfadjointView<Eigen::Lower>().rankUpdate(M.col(k).tail(m), -1.0 / dk);
+          M.col(k).tail(m) /= dk;
         }
       } else {
         const double a = M(k, k), b = M(k + 1, k), c = M(k + 1, k + 1);
@@ -123,12 +124,19 @@ struct DenseLdl {
         else if (a + c < 0) negative += 2;
         const int m2 = n - k - 2;
         if (m2 > 0) {
-          Mat W = M.block(k + 2, k, m2, 2);
-          Eigen::Matrix2d Dinv;
-          Dinv << c / det, -b / det, -b / det, a / det;
-          Mat Lk = W * Dinv;
-          M.bottomRightCorner(m2, m2).noalias() -= Lk * W.transpose();
-          M.block(k + 2, k, m2, 2) = Lk;
+          // trailing -= W D^{-1} W^T = p w1 w1^T + r w2 w2^T + q (w1 w2^T + w2 w1^T)
+          const double pp = c / det, qq = -b / det, rr = a / det;
+          auto T = M.bottomRightCorner(m2, m2).selfadjointView<Eigen::Lower>();
+          auto w1 = M.col(k).tail(m2);
+          auto w2 = M.col(k + 1).tail(m2);
+          T.rankUpdate(w1, -pp);
+          T.rankUpdate(w2, -rr);
+          T.rankUpdate(w1, w2, -qq);
+          for (int i = 0; i < m2; ++i) {
+            const double x1 = w1(i), x2 = w2(i);
+            w1(i) = x1 * pp + x2 * qq;
+            w2(i) = x1 * qq + x2 * rr;
+          }
         }
         M(k + 1, k) = 0.0;
       }
@@ -178,7 +186,7 @@ struct Block {
   DenseLdl ldl;
   IVec rows;  // local indices in the next block that couple with this one
   Mat C;      // coupling: rows.size() x size (next block's rows R, this block's columns)
-  Mat E;      // S^{-1} C^T after factorisation (size x rows.size())
+  Mat X, Z, U;  // work of the Schur complement
 };
 
 // Breadth-first levels over the non-slack primal variables [0, p): the order sorts by (level,
@@ -391,7 +399,9 @@ struct Solver {
     for (auto& B : blocks) {
       B.ldl.M.resize(B.size, B.size);
       B.C.resize(B.rows.size(), B.size);
-      B.E.resize(B.size, B.rows.size());
+      B.X.resize(B.size, B.rows.size());
+      B.Z.resize(B.size, B.rows.size());
+      B.U.resize(B.rows.size(), B.rows.size());
     }
     // where each triplet goes
     entries.assign(nz, Entry());
@@ -403,8 +413,7 @@ struct Solver {
       if (bi == bj) {
         Block& B = blocks[bi];
         const int li = qi - B.start, lj = qj - B.start;
-        en.a = &B.ldl.M(li, lj);
-        if (li != lj) en.b = &B.ldl.M(lj, li);
+        en.a = &B.ldl.M(li, lj);  // li >= lj: the lower triangle, all the factorisation reads
       } else {
         Block& B = blocks[bj];
         const int lr = qi - blocks[bi].start;
@@ -447,17 +456,17 @@ struct Solver {
       negative += B.ldl.negative;
       if (b + 1 < nb && !B.rows.empty()) {
         const int s = B.size, r = static_cast<int>(B.rows.size());
-        Mat X(s, r);  // L^{-1} P^T C^T
+        Mat& X = B.X;  // L^{-1} P^T C^T
         for (int i = 0; i < s; ++i) X.row(i) = B.C.col(B.ldl.perm[i]).transpose();
         B.ldl.M.triangularView<Eigen::UnitLower>().solveInPlace(X);
-        Mat Z = X;
+        Mat& Z = B.Z;
+        Z = X;
         B.ldl.apply_dinv(Z);
-        Mat U = X.transpose() * Z;
+        Mat& U = B.U;
+        U.noalias() = X.transpose() * Z;
         Mat& N = blocks[b + 1].ldl.M;
         for (int j = 0; j < r; ++j)
-          for (int i = 0; i < r; ++i) N(B.rows[i], B.rows[j]) -= U(i, j);
-        B.ldl.M.triangularView<Eigen::UnitLower>().transpose().solveInPlace(Z);
-        for (int i = 0; i < s; ++i) B.E.row(B.ldl.perm[i]) = Z.row(i);
+          for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) -= U(i, j);  // rows ascending: lower
       }
     }
   }
@@ -481,7 +490,9 @@ struct Solver {
       const int s1 = blocks[b + 1].start;
       Vec xn(B.rows.size());
       for (size_t i = 0; i < B.rows.size(); ++i) xn(i) = rhs(s1 + B.rows[i]);
-      rhs.segment(B.start, B.size).noalias() -= B.E * xn;
+      Vec t = B.C.transpose() * xn;  // x_b -= S_b^{-1} C_b^T x_{b+1}
+      B.ldl.solve(t, work);
+      rhs.segment(B.start, B.size) -= t;
     }
     for (int q = 0; q < n; ++q) x[order[q]] = rhs(q);
   }
