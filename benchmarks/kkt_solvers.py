@@ -12,9 +12,12 @@ Per case, the first window is solved ``--repeats`` times with each solver, alter
 
 * iterate agreement over the first ``--iterations`` iterations (objective, inf_pr: the largest
   relative difference), iterations and final objective of each;
-* per solver, medians over the repeats of: IPOPT's own time in the linear system (its timing
-  statistics: factorisation + back-solves, and symbolic analysis) divided by the number of
-  factorisations, and the window's wall time.
+* per solver, medians over the repeats of: IPOPT's timing statistics of the linear system
+  (LinearSystemFactorization + LinearSystemBackSolve per iteration; NB: with MUMPS, IPOPT's
+  factorisation timer reads 0 and the back-solve timer does not hold MUMPS's whole work, so only
+  the next column compares the two), IPOPT's own time per iteration (wall time of the solve
+  minus the NLP function evaluations: the KKT solves and IPOPT's vector work), the window's wall
+  time, and the stage-wise solver's blocks (count, largest).
 """
 
 from __future__ import annotations
@@ -86,8 +89,20 @@ def timed(ocp, call) -> dict:
     out["iterations"] = int(m.group(1)) if m else -1
     out["factorizations"] = len(re.findall(r"^\s*\d+r?\s", text, flags=re.M))  # iteration lines (lower bound)
     out["said"] = text
+    st = ocp.nlp.stats()
+    evals = sum(v for k, v in st.items() if k.startswith("t_wall_nlp_"))
+    out["ipopt"] = st["t_wall_total"] - evals  # IPOPT's own time: linear algebra, mostly the KKT solves
     out["stats"] = stats
     return out
+
+
+def blocks(ocp) -> str:
+    """The stage-wise solver's blocks on this NLP (largest, count)."""
+    from fatigue_pin.ocp.solver import riccati_blocks
+
+    solver = next(iter(ocp.nlp._solvers.values()))
+    biggest, count = riccati_blocks(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1))
+    return f"{count} of <= {biggest}"
 
 
 def main() -> None:
@@ -97,7 +112,7 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=10)
     args = ap.parse_args()
     print(f"{'case':6} {'solver':8} {'iters':>5} {'objective':>22} {'KKT ms/iter':>11} {'factor ms':>9} {'solves ms':>9} "
-          f"{'window s':>8}")
+          f"{'IPOPT ms/iter':>13} {'window s':>8}  blocks")
     for case in args.cases.split(","):
         built = {s: first_window(CASES[case], s) for s in SOLVERS}
         runs: dict[str, list[dict]] = {s: [] for s in SOLVERS}
@@ -114,9 +129,10 @@ def main() -> None:
             fac = [r["factor"] / max(1, r["iterations"] + 1) * 1e3 for r in runs[s]]
             sol = [r["backsolve"] / max(1, r["iterations"] + 1) * 1e3 for r in runs[s]]
             wall = [r["wall"] for r in runs[s]]
+            inner = [r["ipopt"] / max(1, r["iterations"]) * 1e3 for r in runs[s]]
             obj = last[s]["record"]["obj"][-1] if last[s]["record"] else float("nan")
             print(f"{case:6} {s:8} {it:5d} {obj:22.15e} {statistics.median(per):11.3f} {statistics.median(fac):9.3f} "
-                  f"{statistics.median(sol):9.3f} {statistics.median(wall):8.3f}")
+                  f"{statistics.median(sol):9.3f} {statistics.median(inner):13.2f} {statistics.median(wall):8.3f}  {blocks(built[s][0])}")
         ra, rb = last["riccati"]["record"], last["mumps"]["record"]
         if ra and rb:
             n = min(args.iterations + 1, len(ra["obj"]), len(rb["obj"]))

@@ -286,11 +286,24 @@ def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity) -> str | None
     constraint Jacobian (m x n) patterns, or None when it can: the library's own analysis of the
     augmented system's pattern (variables in NLP order, each row after the last variable it
     touches) gives dense blocks of at most :data:`RICCATI_MAX_BLOCK`."""
-    import ctypes
-
     library = riccati_library()
     if library is None:
         return "the stage-wise solver's library is not installed"
+    biggest, _ = riccati_blocks(hessian, jacobian)
+    if biggest < 0:
+        return "the augmented system's pattern has no stage order"
+    if biggest > RICCATI_MAX_BLOCK:
+        return (f"its stages merge into a dense block of {biggest} rows (more than {RICCATI_MAX_BLOCK}: "
+                "a cost or constraint couples distant stages)")
+    return None
+
+
+def riccati_blocks(hessian: ca.Sparsity, jacobian: ca.Sparsity) -> tuple[int, int]:
+    """The stage-wise solver's analysis of the augmented system of these patterns (every row an
+    equality, no slacks): the largest dense block (-1: no stage order) and the number of blocks."""
+    import ctypes
+
+    library = riccati_library()
     n, m = hessian.size1(), jacobian.size1()
     hr, hc = (np.asarray(v, dtype=np.int32) for v in hessian.get_triplet())
     jr, jc = (np.asarray(v, dtype=np.int32) for v in jacobian.get_triplet())
@@ -303,12 +316,7 @@ def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity) -> str | None
     ptr = ctypes.POINTER(ctypes.c_int)
     biggest = lib.riccati_max_block(ctypes.c_int(n + m), ctypes.c_int(irn.size), irn.ctypes.data_as(ptr),
                                     jcn.ctypes.data_as(ptr), ctypes.byref(blocks))
-    if biggest < 0:
-        return "the augmented system's pattern has no stage order"
-    if biggest > RICCATI_MAX_BLOCK:
-        return (f"its stages merge into a dense block of {biggest} rows (more than {RICCATI_MAX_BLOCK}: "
-                "a cost or constraint couples distant stages)")
-    return None
+    return int(biggest), int(blocks.value)
 
 
 def resolve_first_compile(options: SolverOptions, n_intervals: int) -> SolverOptions:
