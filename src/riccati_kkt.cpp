@@ -42,6 +42,7 @@ using IVec = std::vector<int>;
 
 constexpr int MAGIC = 0x52494343;  // "RICC"
 constexpr int MAX_BLOCK = 600;      // analysis fails above this block size
+constexpr int KEEP = 16;            // solvers kept alive (see ma27ad_)
 
 // Dense symmetric indefinite factorisation P^T A P = L D L^T (Bunch-Kaufman partial pivoting,
 // full row/column swaps so that L is a plain unit lower triangle).
@@ -541,6 +542,9 @@ RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int
       if (s && s->ikeep == IKEEP) s.reset();
     registry.push_back(std::move(solver));
     handle = static_cast<int>(registry.size());
+    // IPOPT analyses again at every optimisation (a new IKEEP each time) and never says when an
+    // instance is gone: keep the newest KEEP solvers (one per IPOPT solve that can be under way)
+    if (handle > KEEP) registry[handle - 1 - KEEP].reset();
   }
   if (*N >= 2) {
     IKEEP[0] = MAGIC;
