@@ -54,24 +54,29 @@ struct DenseLdl {
   int negative = 0;
   bool singular = false;
 
+  int ns = 0;       // pivots: the block's own rows; the rows below are the next block's coupled rows
+
+  // Partial factorisation of the front [A, C^T; C, 0] (A: ns x ns, lower triangle): pivots
+  // chosen in A only; afterwards the rows below hold C P L^{-T} D^{-1} and the bottom-right
+  // corner holds -C A^{-1} C^T (the Schur complement's contribution to the next block).
   void factor(double tiny) {
     const int n = static_cast<int>(M.rows());
-    perm.resize(n);
-    for (int i = 0; i < n; ++i) perm[i] = i;
-    d.setZero(n);
-    e.setZero(n);
+    perm.resize(ns);
+    for (int i = 0; i < ns; ++i) perm[i] = i;
+    d.setZero(ns);
+    e.setZero(ns);
     negative = 0;
     singular = false;
     const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
     int k = 0;
-    while (k < n) {
+    while (k < ns) {
       const int m = n - k - 1;
       double absakk = std::abs(M(k, k));
       int imax = k;
       double colmax = 0.0;
-      if (m > 0) {
+      if (ns - k - 1 > 0) {
         Eigen::Index r;
-        colmax = M.col(k).tail(m).cwiseAbs().maxCoeff(&r);
+        colmax = M.col(k).segment(k + 1, ns - k - 1).cwiseAbs().maxCoeff(&r);
         imax = k + 1 + static_cast<int>(r);
       }
       if (!(std::max(absakk, colmax) > tiny)) {
@@ -82,7 +87,7 @@ struct DenseLdl {
       if (absakk < alpha * colmax) {
         double rowmax = 0.0;
         if (imax > k) rowmax = M.row(imax).segment(k, imax - k).cwiseAbs().maxCoeff();
-        if (imax < n - 1) rowmax = std::max(rowmax, M.col(imax).tail(n - 1 - imax).cwiseAbs().maxCoeff());
+        if (imax < ns - 1) rowmax = std::max(rowmax, M.col(imax).segment(imax + 1, ns - 1 - imax).cwiseAbs().maxCoeff());
         if (absakk * rowmax >= alpha * colmax * colmax) {
           kp = k;
         } else if (std::abs(M(imax, imax)) >= alpha * rowmax) {
@@ -149,7 +154,7 @@ struct DenseLdl {
   // Y <- D^{-1} Y (rows in pivoted order)
   template <class T>
   void apply_dinv(T& Y) const {
-    const int n = static_cast<int>(M.rows());
+    const int n = ns;
     for (int k = 0; k < n;) {
       if (k + 1 < n && e(k) != 0.0) {
         const double a = d(k), b = e(k), c = d(k + 1), det = a * c - b * b;
@@ -166,15 +171,22 @@ struct DenseLdl {
     }
   }
 
-  // x <- A^{-1} x
-  void solve(Eigen::Ref<Vec> x, Vec& work) const {
+  // Forward half of a solve with the front: work <- D^{-1} L^{-1} P^T x and below <- L21 L^{-1} P^T x
+  // (to be subtracted from the next block's coupled rows)
+  void forward(const Eigen::Ref<const Vec>& x, Vec& work, Vec& below) const {
     const int n = static_cast<int>(M.rows());
-    work.resize(n);
-    for (int i = 0; i < n; ++i) work(i) = x(perm[i]);
-    M.triangularView<Eigen::UnitLower>().solveInPlace(work);
+    work.resize(ns);
+    for (int i = 0; i < ns; ++i) work(i) = x(perm[i]);
+    M.topLeftCorner(ns, ns).triangularView<Eigen::UnitLower>().solveInPlace(work);
+    below.noalias() = M.bottomLeftCorner(n - ns, ns) * work;
     apply_dinv(work);
-    M.triangularView<Eigen::UnitLower>().transpose().solveInPlace(work);
-    for (int i = 0; i < n; ++i) x(perm[i]) = work(i);
+  }
+  // Backward half: x <- P L^{-T} (work - L21^T x_next)
+  void backward(Eigen::Ref<Vec> x, Vec& work, const Vec& next) const {
+    const int n = static_cast<int>(M.rows());
+    if (n > ns) work.noalias() -= M.bottomLeftCorner(n - ns, ns).transpose() * next;
+    M.topLeftCorner(ns, ns).triangularView<Eigen::UnitLower>().transpose().solveInPlace(work);
+    for (int i = 0; i < ns; ++i) x(perm[i]) = work(i);
   }
 };
 
@@ -192,9 +204,8 @@ struct Entry {  // where a triplet goes: up to two places in the block storage
 struct Block {
   int start = 0, size = 0;
   DenseLdl ldl;
-  IVec rows;  // local indices in the next block that couple with this one
-  Mat C;      // coupling: rows.size() x size (next block's rows R, this block's columns)
-  Mat X, Z, U;  // work of the Schur complement
+  IVec rows;  // local indices in the next block that couple with this one (below the block in its front)
+  Vec w;      // forward solve's result
 };
 
 // Breadth-first levels over the non-slack primal variables [0, p): the order sorts by (level,
@@ -415,11 +426,8 @@ struct Solver {
       for (char c : k) shape[2] += c;
     }
     for (auto& B : blocks) {
-      B.ldl.M.resize(B.size, B.size);
-      B.C.resize(B.rows.size(), B.size);
-      B.X.resize(B.size, B.rows.size());
-      B.Z.resize(B.size, B.rows.size());
-      B.U.resize(B.rows.size(), B.rows.size());
+      B.ldl.ns = B.size;
+      B.ldl.M.resize(B.size + B.rows.size(), B.size + B.rows.size());
     }
     // where each triplet goes
     entries.assign(nz, Entry());
@@ -436,7 +444,7 @@ struct Solver {
         Block& B = blocks[bj];
         const int lr = qi - blocks[bi].start;
         const auto it = std::lower_bound(B.rows.begin(), B.rows.end(), lr);
-        en.a = &B.C(static_cast<int>(it - B.rows.begin()), qj - B.start);
+        en.a = &B.ldl.M(B.size + static_cast<int>(it - B.rows.begin()), qj - B.start);
       }
     }
     work.resize(n);
@@ -447,10 +455,7 @@ struct Solver {
   void factor(const double* a) {
     double t0 = now();
     double amax = 0.0;
-    for (auto& B : blocks) {
-      B.ldl.M.setZero();
-      B.C.setZero();
-    }
+    for (auto& B : blocks) B.ldl.M.setZero();
     for (int k = 0; k < nz; ++k) {
       const Entry& en = entries[k];
       *en.a += a[k];
@@ -480,17 +485,9 @@ struct Solver {
       negative += B.ldl.negative;
       if (b + 1 < nb && !B.rows.empty()) {
         const int s = B.size, r = static_cast<int>(B.rows.size());
-        Mat& X = B.X;  // L^{-1} P^T C^T
-        for (int i = 0; i < s; ++i) X.row(i) = B.C.col(B.ldl.perm[i]).transpose();
-        B.ldl.M.triangularView<Eigen::UnitLower>().solveInPlace(X);
-        Mat& Z = B.Z;
-        Z = X;
-        B.ldl.apply_dinv(Z);
-        Mat& U = B.U;
-        U.noalias() = X.transpose() * Z;
         Mat& N = blocks[b + 1].ldl.M;
         for (int j = 0; j < r; ++j)
-          for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) -= U(i, j);  // rows ascending: lower
+          for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) += B.ldl.M(s + i, s + j);  // rows ascending: lower
         t2 = now();
         profile[2] += t2 - t1;
         t1 = t2;
@@ -502,25 +499,20 @@ struct Solver {
     const double t0 = now();
     for (int q = 0; q < n; ++q) rhs(q) = x[order[q]];
     const int nb = static_cast<int>(blocks.size());
+    Vec below, next;
     for (int b = 0; b < nb; ++b) {
       Block& B = blocks[b];
-      auto w = rhs.segment(B.start, B.size);
-      B.ldl.solve(w, work);
-      if (b + 1 < nb && !B.rows.empty()) {
-        Vec cw = B.C * w;
-        const int s1 = blocks[b + 1].start;
-        for (size_t i = 0; i < B.rows.size(); ++i) rhs(s1 + B.rows[i]) -= cw(i);
-      }
+      below.resize(B.rows.size());
+      B.ldl.forward(rhs.segment(B.start, B.size), B.w, below);
+      const int s1 = b + 1 < nb ? blocks[b + 1].start : 0;
+      for (size_t i = 0; i < B.rows.size(); ++i) rhs(s1 + B.rows[i]) -= below(i);
     }
-    for (int b = nb - 2; b >= 0; --b) {
+    for (int b = nb - 1; b >= 0; --b) {
       Block& B = blocks[b];
-      if (B.rows.empty()) continue;
-      const int s1 = blocks[b + 1].start;
-      Vec xn(B.rows.size());
-      for (size_t i = 0; i < B.rows.size(); ++i) xn(i) = rhs(s1 + B.rows[i]);
-      Vec t = B.C.transpose() * xn;  // x_b -= S_b^{-1} C_b^T x_{b+1}
-      B.ldl.solve(t, work);
-      rhs.segment(B.start, B.size) -= t;
+      next.resize(B.rows.size());
+      const int s1 = b + 1 < nb ? blocks[b + 1].start : 0;
+      for (size_t i = 0; i < B.rows.size(); ++i) next(i) = rhs(s1 + B.rows[i]);
+      B.ldl.backward(rhs.segment(B.start, B.size), B.w, next);
     }
     for (int q = 0; q < n; ++q) x[order[q]] = rhs(q);
     profile[3] += now() - t0;
