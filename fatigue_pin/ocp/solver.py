@@ -106,7 +106,10 @@ class SolverOptions:
 
     Attributes:
         linear_solver: IPOPT's linear solver (``mumps`` ships with CasADi; ``ma57``, ``ma27``,
-            ... need HSL libraries on the machine).
+            ... need HSL libraries on the machine); ``riccati``: this package's stage-wise solver
+            of IPOPT's augmented system (:func:`riccati_library`), loaded by IPOPT in place of
+            HSL's MA27, so IPOPT's algorithm and iterates stay; a problem whose stages it cannot
+            take falls back to ``mumps`` with one line saying why (:func:`riccati_structure`).
         tol: IPOPT ``tol`` (overall convergence tolerance; 1e-6, IPOPT's default 1e-8:
             :data:`fatigue_pin.ocp.ipopt_defaults.DEPARTURES` lists every setting unlike IPOPT's).
         constr_viol_tol: IPOPT ``constr_viol_tol``.
@@ -223,7 +226,7 @@ class SolverOptions:
     def ipopt_options(self) -> dict[str, Any]:
         """The option dictionary passed to ``nlpsol('ipopt')``."""
         ipopt: dict[str, Any] = {
-            "linear_solver": self.linear_solver,
+            **linear_solver_options(self.linear_solver),
             "tol": self.tol,
             "constr_viol_tol": self.constr_viol_tol,
             "max_iter": int(self.max_iter),
@@ -247,6 +250,73 @@ class SolverOptions:
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-code cache (:func:`fatigue_pin.ocp.compiled.cache_folder`)."""
         return cache_folder(self.cache_dir)
+
+
+#: ``linear_solver = "riccati"`` falls back to MUMPS above this many rows and columns in one
+#: dense block of the stage-wise elimination (a stage of the UR5 window with Xia halves is about
+#: 130; a cost or constraint coupling distant stages merges them into one block).
+RICCATI_MAX_BLOCK = 300
+#: Environment variable naming the stage-wise solver's library (development builds).
+RICCATI_LIBRARY_ENV = "FATIGUE_PIN_RICCATI_LIB"
+
+
+def riccati_library() -> Path | None:
+    """The shared library of the stage-wise KKT solver (``src/riccati_kkt.cpp``, installed beside
+    the package by CMake; ``$FATIGUE_PIN_RICCATI_LIB`` first), or None where it is missing."""
+    given = os.environ.get(RICCATI_LIBRARY_ENV)
+    candidates = [Path(given)] if given else []
+    candidates.append(Path(__file__).resolve().parents[1] / "libfatigue_pin_riccati.so")
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def linear_solver_options(name: str) -> dict[str, Any]:
+    """IPOPT options of the linear solver ``name``: ``riccati`` is IPOPT's MA27 interface on
+    :func:`riccati_library` (exported as ``ma27ad``, ...), without MC19 scaling (MUMPS has none
+    either, and the library exports no MC19)."""
+    if name != "riccati":
+        return {"linear_solver": name}
+    library = riccati_library()
+    if library is None:
+        return {"linear_solver": "mumps"}
+    return {"linear_solver": "ma27", "hsllib": str(library), "linear_system_scaling": "none"}
+
+
+def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity) -> str | None:
+    """Why the stage-wise solver cannot take an NLP with these Lagrangian Hessian (n x n) and
+    constraint Jacobian (m x n) patterns, or None when it can: the library's own analysis of the
+    augmented system's pattern (variables in NLP order, each row after the last variable it
+    touches) gives dense blocks of at most :data:`RICCATI_MAX_BLOCK`."""
+    library = riccati_library()
+    if library is None:
+        return "the stage-wise solver's library is not installed"
+    biggest, _ = riccati_blocks(hessian, jacobian)
+    if biggest < 0:
+        return "the augmented system's pattern has no stage order"
+    if biggest > RICCATI_MAX_BLOCK:
+        return (f"its stages merge into a dense block of {biggest} rows (more than {RICCATI_MAX_BLOCK}: "
+                "a cost or constraint couples distant stages)")
+    return None
+
+
+def riccati_blocks(hessian: ca.Sparsity, jacobian: ca.Sparsity) -> tuple[int, int]:
+    """The stage-wise solver's analysis of the augmented system of these patterns (every row an
+    equality, no slacks): the largest dense block (-1: no stage order) and the number of blocks."""
+    import ctypes
+
+    library = riccati_library()
+    n, m = hessian.size1(), jacobian.size1()
+    hr, hc = (np.asarray(v, dtype=np.int32) for v in hessian.get_triplet())
+    jr, jc = (np.asarray(v, dtype=np.int32) for v in jacobian.get_triplet())
+    diag = np.arange(n + m, dtype=np.int32)
+    irn = np.concatenate([np.maximum(hr, hc), jr + n, diag]) + 1
+    jcn = np.concatenate([np.minimum(hr, hc), jc, diag]) + 1
+    lib = ctypes.CDLL(str(library))
+    lib.riccati_max_block.restype = ctypes.c_int
+    blocks = ctypes.c_int(0)
+    ptr = ctypes.POINTER(ctypes.c_int)
+    biggest = lib.riccati_max_block(ctypes.c_int(n + m), ctypes.c_int(irn.size), irn.ctypes.data_as(ptr),
+                                    jcn.ctypes.data_as(ptr), ctypes.byref(blocks))
+    return int(biggest), int(blocks.value)
 
 
 def resolve_first_compile(options: SolverOptions, n_intervals: int) -> SolverOptions:
@@ -483,7 +553,23 @@ class NlpSolver:
         #: per iteration limit, the instance of the last solve (warm-started or not)
         self._last: dict[int, ca.Function] = {}
         self._solver()
+        if options.linear_solver == "riccati":
+            self._check_riccati()
         self.build_time_s = time.perf_counter() - t0
+
+    def _check_riccati(self) -> None:
+        """Fall back to MUMPS, with one line on stderr saying why, where the stage-wise solver
+        cannot take this NLP (:func:`riccati_structure`, on the patterns IPOPT will see)."""
+        why = "the stage-wise solver's library is not installed"
+        if riccati_library() is not None:
+            solver = next(iter(self._solvers.values()))
+            why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0),
+                                    solver.get_function("nlp_jac_g").sparsity_out(1))
+        if why is not None:
+            print(f"solver.linear_solver = 'riccati': {self._label} is solved with MUMPS instead ({why})", file=sys.stderr)
+            self.options = replace(self.options, linear_solver="mumps")
+            self._solvers.clear()
+            self._solver()
 
     def stats(self, max_iter: int | None = None) -> dict[str, Any]:
         """CasADi's statistics of the last solve with this iteration limit: IPOPT's per-iteration

@@ -1,0 +1,628 @@
+// A stage-wise solver of IPOPT's augmented system behind the HSL MA27 interface.
+//
+// IPOPT 3.14 (inside the CasADi wheel) loads HSL routines at run time from the library named by
+// its option `hsllib` (Ipopt::LibraryLoader, symbols "ma27ad", "ma27ad_", ... tried in turn; only
+// the chosen solver's four routines are looked up: Ma27TSolverInterface::InitializeImpl). This
+// library exports ma27id/ma27ad/ma27bd/ma27cd with MA27's Fortran calling convention and the
+// parts of its contract that Ipopt::Ma27TSolverInterface reads:
+//   ma27ad: analysis of the triplet pattern (1-based, one triangle or both, duplicates summed);
+//           INFO(1) = 0, INFO(5)/INFO(6) = real/integer workspace wanted (small: the factors live
+//           here, not in IPOPT's arrays).
+//   ma27bd: numerical factorisation; INFO(1) = 0 or 3 (singular), INFO(15) = negative eigenvalues.
+//   ma27cd: solve of one right-hand side in place.
+// The solver's state is kept here; its handle travels in IKEEP (ma27ad -> ma27bd) and IW
+// (ma27bd -> ma27cd), both owned by IPOPT and kept between the calls.
+//
+// Method: the pattern gives an elimination order by stages. Primal variables (the indices before
+// the trailing independent set of constraint rows) keep their NLP order, which the project's
+// transcription interleaves by stage; each constraint row comes right after the last primal
+// variable it touches, and a slack (a primal touching one row only) right after its row. Blocks
+// end after each run of rows, and are merged until every block couples only with the next one.
+// The matrix is then block tridiagonal with dense blocks of a stage's size; a block LDL^T
+// eliminates them in order, each diagonal block (after the Schur complement of the previous
+// one) factorised densely with Bunch-Kaufman pivoting inside the block. The factorisation is a
+// congruence, so the inertia is exact (Sylvester) whenever no pivot is zero; a zero pivot is
+// reported as singularity, as MA27 does, and IPOPT regularises.
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+namespace {
+
+using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>;
+using Vec = Eigen::VectorXd;
+using IVec = std::vector<int>;
+
+constexpr int MAGIC = 0x52494343;  // "RICC"
+constexpr int MAX_BLOCK = 600;      // analysis fails above this block size
+constexpr int KEEP = 16;            // solvers kept alive (see ma27ad_)
+
+// Dense symmetric indefinite factorisation P^T A P = L D L^T (Bunch-Kaufman partial pivoting,
+// full row/column swaps so that L is a plain unit lower triangle).
+struct DenseLdl {
+  Mat M;            // L in the strict lower part (zero inside 2x2 pivots)
+  IVec perm;        // P: row i of P^T A is row perm[i] of A
+  Vec d, e;         // D: diagonal d, sub-diagonal e (nonzero at the first index of a 2x2 pivot)
+  int negative = 0;
+  bool singular = false;
+
+  int ns = 0;       // pivots: the block's own rows; the rows below are the next block's coupled rows
+
+  // Partial factorisation of the front [A, C^T; C, 0] (A: ns x ns, lower triangle): pivots
+  // chosen in A only; afterwards the rows below hold C P L^{-T} D^{-1} and the bottom-right
+  // corner holds -C A^{-1} C^T (the Schur complement's contribution to the next block).
+  void factor(double tiny) {
+    const int n = static_cast<int>(M.rows());
+    perm.resize(ns);
+    for (int i = 0; i < ns; ++i) perm[i] = i;
+    d.setZero(ns);
+    e.setZero(ns);
+    negative = 0;
+    singular = false;
+    const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
+    int k = 0;
+    while (k < ns) {
+      const int m = n - k - 1;
+      double absakk = std::abs(M(k, k));
+      int imax = k;
+      double colmax = 0.0;
+      if (ns - k - 1 > 0) {
+        Eigen::Index r;
+        colmax = M.col(k).segment(k + 1, ns - k - 1).cwiseAbs().maxCoeff(&r);
+        imax = k + 1 + static_cast<int>(r);
+      }
+      if (!(std::max(absakk, colmax) > tiny)) {
+        singular = true;
+        return;
+      }
+      int kstep = 1, kp = k;
+      if (absakk < alpha * colmax) {
+        double rowmax = 0.0;
+        if (imax > k) rowmax = M.row(imax).segment(k, imax - k).cwiseAbs().maxCoeff();
+        if (imax < ns - 1) rowmax = std::max(rowmax, M.col(imax).segment(imax + 1, ns - 1 - imax).cwiseAbs().maxCoeff());
+        if (absakk * rowmax >= alpha * colmax * colmax) {
+          kp = k;
+        } else if (std::abs(M(imax, imax)) >= alpha * rowmax) {
+          kp = imax;
+        } else {
+          kp = imax;
+          kstep = 2;
+        }
+      }
+      const int kk = k + kstep - 1;
+      if (kp != kk) {  // symmetric interchange in the lower triangle (as LAPACK's dsytf2)
+        M.row(kk).head(kk).swap(M.row(kp).head(kk));
+        if (kp + 1 < n) M.col(kk).tail(n - kp - 1).swap(M.col(kp).tail(n - kp - 1));
+        for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
+        std::swap(M(kk, kk), M(kp, kp));
+        std::swap(perm[kk], perm[kp]);
+      }
+      if (kstep == 1) {
+        const double dk = M(k, k);
+        if (!(std::abs(dk) > tiny)) {
+          singular = true;
+          return;
+        }
+        d(k) = dk;
+        if (dk < 0) ++negative;
+        if (m > 0) {
+          M.bottomRightCorner(m, m).selfadjointView<Eigen::Lower>().rankUpdate(M.col(k).tail(m), -1.0 / dk);
+          M.col(k).tail(m) /= dk;
+        }
+      } else {
+        const double a = M(k, k), b = M(k + 1, k), c = M(k + 1, k + 1);
+        const double det = a * c - b * b;
+        if (!(std::abs(det) > tiny)) {
+          singular = true;
+          return;
+        }
+        d(k) = a;
+        d(k + 1) = c;
+        e(k) = b;
+        if (det < 0) negative += 1;
+        else if (a + c < 0) negative += 2;
+        const int m2 = n - k - 2;
+        if (m2 > 0) {
+          // trailing -= W D^{-1} W^T = p w1 w1^T + r w2 w2^T + q (w1 w2^T + w2 w1^T)
+          const double pp = c / det, qq = -b / det, rr = a / det;
+          auto T = M.bottomRightCorner(m2, m2).selfadjointView<Eigen::Lower>();
+          auto w1 = M.col(k).tail(m2);
+          auto w2 = M.col(k + 1).tail(m2);
+          T.rankUpdate(w1, -pp);
+          T.rankUpdate(w2, -rr);
+          T.rankUpdate(w1, w2, -qq);
+          for (int i = 0; i < m2; ++i) {
+            const double x1 = w1(i), x2 = w2(i);
+            w1(i) = x1 * pp + x2 * qq;
+            w2(i) = x1 * qq + x2 * rr;
+          }
+        }
+        M(k + 1, k) = 0.0;
+      }
+      k += kstep;
+    }
+  }
+
+  // Y <- D^{-1} Y (rows in pivoted order)
+  template <class T>
+  void apply_dinv(T& Y) const {
+    const int n = ns;
+    for (int k = 0; k < n;) {
+      if (k + 1 < n && e(k) != 0.0) {
+        const double a = d(k), b = e(k), c = d(k + 1), det = a * c - b * b;
+        for (Eigen::Index j = 0; j < Y.cols(); ++j) {
+          const double y0 = Y(k, j), y1 = Y(k + 1, j);
+          Y(k, j) = (c * y0 - b * y1) / det;
+          Y(k + 1, j) = (a * y1 - b * y0) / det;
+        }
+        k += 2;
+      } else {
+        Y.row(k) /= d(k);
+        k += 1;
+      }
+    }
+  }
+
+  // Forward half of a solve with the front: work <- D^{-1} L^{-1} P^T x and below <- L21 L^{-1} P^T x
+  // (to be subtracted from the next block's coupled rows)
+  void forward(const Eigen::Ref<const Vec>& x, Vec& work, Vec& below) const {
+    const int n = static_cast<int>(M.rows());
+    work.resize(ns);
+    for (int i = 0; i < ns; ++i) work(i) = x(perm[i]);
+    M.topLeftCorner(ns, ns).triangularView<Eigen::UnitLower>().solveInPlace(work);
+    below.noalias() = M.bottomLeftCorner(n - ns, ns) * work;
+    apply_dinv(work);
+  }
+  // Backward half: x <- P L^{-T} (work - L21^T x_next)
+  void backward(Eigen::Ref<Vec> x, Vec& work, const Vec& next) const {
+    const int n = static_cast<int>(M.rows());
+    if (n > ns) work.noalias() -= M.bottomLeftCorner(n - ns, ns).transpose() * next;
+    M.topLeftCorner(ns, ns).triangularView<Eigen::UnitLower>().transpose().solveInPlace(work);
+    for (int i = 0; i < ns; ++i) x(perm[i]) = work(i);
+  }
+};
+
+// Time spent per phase (seconds): assembly, dense Bunch-Kaufman, Schur complement, solves.
+// Read by riccati_profile (benchmarks only).
+double profile[4] = {0, 0, 0, 0};
+double shape[3] = {0, 0, 0};  // last analysis: sums over blocks of size, coupled rows below, coupled columns
+inline double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+
+struct Entry {  // where a triplet goes: up to two places in the block storage
+  double* a = nullptr;
+  double* b = nullptr;
+};
+
+struct Block {
+  int start = 0, size = 0;
+  DenseLdl ldl;
+  IVec rows;  // local indices in the next block that couple with this one (below the block in its front)
+  Vec w;      // forward solve's result
+};
+
+// Breadth-first levels over the non-slack primal variables [0, p): the order sorts by (level,
+// index), levels counted from a pseudo-peripheral start (George-Liu), component after component.
+IVec primal_levels(int p, const std::vector<std::vector<int>>& adj, const IVec& slack_row) {
+  std::vector<std::vector<int>> nb(p);
+  for (int i = 0; i < p; ++i) {
+    if (slack_row[i] >= 0) continue;
+    for (int j : adj[i]) {
+      if (j < p) {
+        if (slack_row[j] < 0) nb[i].push_back(j);
+      } else {
+        for (int k : adj[j])
+          if (k < p && k != i && slack_row[k] < 0) nb[i].push_back(k);
+      }
+    }
+    std::sort(nb[i].begin(), nb[i].end());
+    nb[i].erase(std::unique(nb[i].begin(), nb[i].end()), nb[i].end());
+  }
+  IVec level(p, -1), comp_mark(p, 0), queue;
+  queue.reserve(p);
+  auto bfs = [&](int start, IVec& dist, const IVec& members) {
+    for (int v : members) dist[v] = -1;
+    queue.clear();
+    queue.push_back(start);
+    dist[start] = 0;
+    for (size_t h = 0; h < queue.size(); ++h) {
+      const int v = queue[h];
+      for (int w : nb[v])
+        if (dist[w] < 0) {
+          dist[w] = dist[v] + 1;
+          queue.push_back(w);
+        }
+    }
+    return queue.back();
+  };
+  IVec dist(p, -1), result;
+  int offset = 0;
+  for (int s0 = 0; s0 < p; ++s0) {
+    if (slack_row[s0] >= 0 || comp_mark[s0]) continue;
+    // the component
+    IVec members;
+    {
+      IVec tmp(p, -1);
+      bfs(s0, tmp, IVec());
+      members = queue;
+      for (int v : members) comp_mark[v] = 1;
+    }
+    int start = s0, ecc = -1;
+    for (int round = 0; round < 4; ++round) {
+      const int far = bfs(start, dist, members);
+      // among the last level, the variable of least degree
+      int best = far;
+      for (int v : members)
+        if (dist[v] == dist[far] && nb[v].size() < nb[best].size()) best = v;
+      if (dist[far] <= ecc) break;
+      ecc = dist[far];
+      start = best;
+    }
+    bfs(start, dist, members);
+    std::sort(members.begin(), members.end(), [&](int a, int b) { return dist[a] != dist[b] ? dist[a] < dist[b] : a < b; });
+    for (int v : members) level[v] = offset + dist[v];
+    offset += ecc + 2;
+    result.insert(result.end(), members.begin(), members.end());
+  }
+  return result;
+}
+
+struct Solver {
+  int n = 0, nz = 0;
+  IVec order;  // position -> index
+  IVec pos;    // index -> position
+  std::vector<Block> blocks;
+  std::vector<Entry> entries;
+  std::vector<int> block_of;  // position -> block
+  double scale = 1.0;
+  Vec work, rhs;
+  int negative = 0;
+  bool singular = false;
+  int max_block = 0;
+  const void* ikeep = nullptr;
+
+  // Returns 0 or an MA27-style error code.
+  int analyse(int n_, int nz_, const int* irn, const int* jcn) {
+    n = n_;
+    nz = nz_;
+    std::vector<std::vector<int>> adj(n);
+    for (int k = 0; k < nz; ++k) {
+      const int i = irn[k] - 1, j = jcn[k] - 1;
+      if (i < 0 || j < 0 || i >= n || j >= n) return 1;  // MA27: index out of range (warning 1)
+      if (i != j) {
+        adj[i].push_back(j);
+        adj[j].push_back(i);
+      }
+    }
+    for (auto& a : adj) {
+      std::sort(a.begin(), a.end());
+      a.erase(std::unique(a.begin(), a.end()), a.end());
+    }
+    // constraint rows: the trailing set with no coupling among itself
+    int p = 0;
+    for (int i = 0; i < n; ++i)
+      for (int j : adj[i])
+        if (j > i) p = std::max(p, i + 1);
+    // slacks: primal indices coupled with exactly one row
+    IVec slack_row(n, -1);
+    for (int i = 0; i < p; ++i)
+      if (adj[i].size() == 1 && adj[i][0] >= p) slack_row[i] = adj[i][0];
+    // rows after the last non-slack primal they touch (-1: none)
+    std::vector<std::vector<int>> rows_after(p + 1);
+    std::vector<std::vector<int>> slacks_of(n);
+    for (int i = 0; i < p; ++i)
+      if (slack_row[i] >= 0) slacks_of[slack_row[i]].push_back(i);
+    IVec primal_order = primal_levels(p, adj, slack_row);
+    IVec rank(p, -1);
+    for (size_t t = 0; t < primal_order.size(); ++t) rank[primal_order[t]] = static_cast<int>(t);
+    for (int r = p; r < n; ++r) {
+      int last = -1;
+      for (int j : adj[r])
+        if (j < p && slack_row[j] < 0) last = std::max(last, rank[j]);
+      rows_after[last + 1].push_back(r);
+    }
+    // primal order: breadth-first levels of the primal graph (Hessian couplings and variables
+    // sharing a row) from a pseudo-peripheral variable. In a multiple-shooting OCP the levels are
+    // the stages, whatever the NLP's variable order (states of all nodes, then controls, ...).
+    order.clear();
+    IVec natural;  // positions where a block may start
+    auto emit_rows = [&](const IVec& rows) {
+      for (int r : rows) {
+        order.push_back(r);
+        for (int s : slacks_of[r]) order.push_back(s);
+      }
+    };
+    emit_rows(rows_after[0]);
+    bool after_row = !rows_after[0].empty();
+    natural.push_back(0);
+    for (size_t t = 0; t < primal_order.size(); ++t) {
+      if (after_row) natural.push_back(static_cast<int>(order.size()));
+      order.push_back(primal_order[t]);
+      emit_rows(rows_after[t + 1]);
+      after_row = !rows_after[t + 1].empty();
+    }
+    if (static_cast<int>(order.size()) != n) return -1;
+    natural.push_back(n);
+    natural.erase(std::unique(natural.begin(), natural.end()), natural.end());
+    pos.assign(n, 0);
+    for (int q = 0; q < n; ++q) pos[order[q]] = q;
+    IVec far(n, 0);
+    for (int q = 0; q < n; ++q) {
+      far[q] = q;
+      for (int j : adj[order[q]]) far[q] = std::max(far[q], pos[j]);
+    }
+    // blocks: natural boundaries, merged so that each block couples with the next only
+    IVec starts{0};
+    {
+      size_t nb = 1;
+      int end = natural[nb];
+      while (true) {
+        const int start = starts.back();
+        int reach = start;
+        for (int q = start; q < end; ++q) reach = std::max(reach, far[q]);
+        if (end >= n) break;
+        starts.push_back(end);
+        // next block ends at the first natural boundary beyond both its start and this reach
+        while (nb < natural.size() && natural[nb] <= std::max(reach, end)) ++nb;
+        end = nb < natural.size() ? natural[nb] : n;
+      }
+    }
+    // a block that reaches beyond the next one can still happen when the next block's own end
+    // was fixed by the previous reach only; check and merge until clean
+    for (bool changed = true; changed;) {
+      changed = false;
+      block_of.assign(n, 0);
+      for (size_t b = 0; b < starts.size(); ++b) {
+        const int e = b + 1 < starts.size() ? starts[b + 1] : n;
+        for (int q = starts[b]; q < e; ++q) block_of[q] = static_cast<int>(b);
+      }
+      for (size_t b = 0; b + 1 < starts.size() && !changed; ++b) {
+        const int e = starts[b + 1];
+        int reach_block = static_cast<int>(b);
+        for (int q = starts[b]; q < e; ++q) reach_block = std::max(reach_block, block_of[far[q]]);
+        if (reach_block > static_cast<int>(b) + 1) {
+          starts.erase(starts.begin() + b + 2, starts.begin() + reach_block + 1);
+          changed = true;
+        }
+      }
+    }
+    const int nb = static_cast<int>(starts.size());
+    blocks.assign(nb, Block());
+    max_block = 0;
+    for (int b = 0; b < nb; ++b) {
+      blocks[b].start = starts[b];
+      blocks[b].size = (b + 1 < nb ? starts[b + 1] : n) - starts[b];
+      max_block = std::max(max_block, blocks[b].size);
+    }
+    if (max_block > MAX_BLOCK) return -2;
+    // coupling rows of each block in the next one
+    for (int b = 0; b + 1 < nb; ++b) {
+      Block& B = blocks[b];
+      std::vector<char> mark(blocks[b + 1].size, 0);
+      for (int q = B.start; q < B.start + B.size; ++q)
+        for (int j : adj[order[q]]) {
+          const int pj = pos[j];
+          if (block_of[pj] == b + 1) mark[pj - blocks[b + 1].start] = 1;
+        }
+      B.rows.clear();
+      for (int r = 0; r < blocks[b + 1].size; ++r)
+        if (mark[r]) B.rows.push_back(r);
+    }
+    shape[0] = shape[1] = shape[2] = 0;
+    for (int b = 0; b + 1 < nb; ++b) {
+      std::vector<char> k(blocks[b].size, 0);
+      for (int q = blocks[b].start; q < blocks[b].start + blocks[b].size; ++q)
+        for (int j : adj[order[q]])
+          if (block_of[pos[j]] == b + 1) k[q - blocks[b].start] = 1;
+      shape[0] += blocks[b].size;
+      shape[1] += static_cast<double>(blocks[b].rows.size());
+      for (char c : k) shape[2] += c;
+    }
+    for (auto& B : blocks) {
+      B.ldl.ns = B.size;
+      B.ldl.M.resize(B.size + B.rows.size(), B.size + B.rows.size());
+    }
+    // where each triplet goes
+    entries.assign(nz, Entry());
+    for (int k = 0; k < nz; ++k) {
+      int qi = pos[irn[k] - 1], qj = pos[jcn[k] - 1];
+      if (qi < qj) std::swap(qi, qj);  // qi >= qj: lower triangle in block order
+      const int bi = block_of[qi], bj = block_of[qj];
+      Entry& en = entries[k];
+      if (bi == bj) {
+        Block& B = blocks[bi];
+        const int li = qi - B.start, lj = qj - B.start;
+        en.a = &B.ldl.M(li, lj);  // li >= lj: the lower triangle, all the factorisation reads
+      } else {
+        Block& B = blocks[bj];
+        const int lr = qi - blocks[bi].start;
+        const auto it = std::lower_bound(B.rows.begin(), B.rows.end(), lr);
+        en.a = &B.ldl.M(B.size + static_cast<int>(it - B.rows.begin()), qj - B.start);
+      }
+    }
+    work.resize(n);
+    rhs.resize(n);
+    return 0;
+  }
+
+  void factor(const double* a) {
+    double t0 = now();
+    double amax = 0.0;
+    for (auto& B : blocks) B.ldl.M.setZero();
+    for (int k = 0; k < nz; ++k) {
+      const Entry& en = entries[k];
+      *en.a += a[k];
+      if (en.b) *en.b += a[k];
+      amax = std::max(amax, std::abs(a[k]));
+    }
+    scale = amax > 0 ? amax : 1.0;
+    // zero pivots only, as MA27 and MUMPS (IPOPT's settings) report singularity: a threshold
+    // relative to the largest entry would call every matrix singular once IPOPT's bound terms
+    // or its regularisation grow large (measured: arm26's 15th iteration, perturbations to 1e20)
+    const double tiny = std::numeric_limits<double>::min();
+    negative = 0;
+    singular = false;
+    const int nb = static_cast<int>(blocks.size());
+    double t1 = now();
+    profile[0] += t1 - t0;
+    for (int b = 0; b < nb; ++b) {
+      Block& B = blocks[b];
+      B.ldl.factor(tiny);
+      double t2 = now();
+      profile[1] += t2 - t1;
+      t1 = t2;
+      if (B.ldl.singular) {
+        singular = true;
+        return;
+      }
+      negative += B.ldl.negative;
+      if (b + 1 < nb && !B.rows.empty()) {
+        const int s = B.size, r = static_cast<int>(B.rows.size());
+        Mat& N = blocks[b + 1].ldl.M;
+        for (int j = 0; j < r; ++j)
+          for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) += B.ldl.M(s + i, s + j);  // rows ascending: lower
+        t2 = now();
+        profile[2] += t2 - t1;
+        t1 = t2;
+      }
+    }
+  }
+
+  void solve(double* x) {
+    const double t0 = now();
+    for (int q = 0; q < n; ++q) rhs(q) = x[order[q]];
+    const int nb = static_cast<int>(blocks.size());
+    Vec below, next;
+    for (int b = 0; b < nb; ++b) {
+      Block& B = blocks[b];
+      below.resize(B.rows.size());
+      B.ldl.forward(rhs.segment(B.start, B.size), B.w, below);
+      const int s1 = b + 1 < nb ? blocks[b + 1].start : 0;
+      for (size_t i = 0; i < B.rows.size(); ++i) rhs(s1 + B.rows[i]) -= below(i);
+    }
+    for (int b = nb - 1; b >= 0; --b) {
+      Block& B = blocks[b];
+      next.resize(B.rows.size());
+      const int s1 = b + 1 < nb ? blocks[b + 1].start : 0;
+      for (size_t i = 0; i < B.rows.size(); ++i) next(i) = rhs(s1 + B.rows[i]);
+      B.ldl.backward(rhs.segment(B.start, B.size), B.w, next);
+    }
+    for (int q = 0; q < n; ++q) x[order[q]] = rhs(q);
+    profile[3] += now() - t0;
+  }
+};
+
+std::mutex registry_mutex;
+std::vector<std::unique_ptr<Solver>> registry;  // handle = index + 1
+
+Solver* lookup(int handle) {
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  if (handle < 1 || handle > static_cast<int>(registry.size())) return nullptr;
+  return registry[handle - 1].get();
+}
+
+}  // namespace
+
+#define RICCATI_EXPORT __attribute__((visibility("default")))
+
+extern "C" {
+
+RICCATI_EXPORT void ma27id_(int* icntl, double* cntl) {
+  for (int i = 0; i < 30; ++i) icntl[i] = 0;
+  for (int i = 0; i < 5; ++i) cntl[i] = 0.0;
+  cntl[0] = 0.1;
+}
+
+RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int* IW, int* LIW, int* IKEEP, int* IW1, int* NSTEPS,
+             int* IFLAG, int* ICNTL, double* CNTL, int* INFO, double* OPS) {
+  (void)IW; (void)LIW; (void)IW1; (void)IFLAG; (void)ICNTL; (void)CNTL;
+  for (int i = 0; i < 20; ++i) INFO[i] = 0;
+  *OPS = 0.0;
+  *NSTEPS = 1;
+  auto solver = std::make_unique<Solver>();
+  solver->ikeep = IKEEP;
+  const int rc = solver->analyse(*N, *NZ, IRN, ICN);
+  if (rc != 0) {
+    INFO[0] = rc > 0 ? -rc : -100 + rc;
+    INFO[1] = solver->max_block;
+    return;
+  }
+  int handle;
+  {
+    std::lock_guard<std::mutex> lock(registry_mutex);
+    // a solver whose IKEEP array is handed back again is being replaced
+    for (auto& s : registry)
+      if (s && s->ikeep == IKEEP) s.reset();
+    registry.push_back(std::move(solver));
+    handle = static_cast<int>(registry.size());
+    // IPOPT analyses again at every optimisation (a new IKEEP each time) and never says when an
+    // instance is gone: keep the newest KEEP solvers (one per IPOPT solve that can be under way)
+    if (handle > KEEP) registry[handle - 1 - KEEP].reset();
+  }
+  if (*N >= 2) {
+    IKEEP[0] = MAGIC;
+    IKEEP[1] = handle;
+  }
+  INFO[4] = std::max(*NZ, 1);   // real workspace wanted (IPOPT only copies the values there)
+  INFO[5] = 16;                 // integer workspace wanted (the handle)
+}
+
+RICCATI_EXPORT void ma27bd_(int* N, int* NZ, const int* IRN, const int* ICN, double* A, int* LA, int* IW, int* LIW, int* IKEEP,
+             int* NSTEPS, int* MAXFRT, int* IW1, int* ICNTL, double* CNTL, int* INFO) {
+  (void)N; (void)NZ; (void)IRN; (void)ICN; (void)LA; (void)IW1; (void)ICNTL; (void)CNTL;
+  for (int i = 0; i < 20; ++i) INFO[i] = 0;
+  *NSTEPS = 1;
+  *MAXFRT = 1;
+  Solver* s = (*N >= 2 && IKEEP[0] == MAGIC) ? lookup(IKEEP[1]) : nullptr;
+  if (!s || *LIW < 2) {
+    INFO[0] = -1;
+    return;
+  }
+  IW[0] = MAGIC;
+  IW[1] = IKEEP[1];
+  s->factor(A);
+  if (s->singular) {
+    INFO[0] = 3;
+    INFO[1] = *N - 1;  // rank (unknown; MA27 reports the rank found so far)
+    INFO[14] = s->negative;
+    return;
+  }
+  INFO[14] = s->negative;
+}
+
+RICCATI_EXPORT void ma27cd_(int* N, double* A, int* LA, int* IW, int* LIW, double* W, int* MAXFRT, double* RHS, int* IW1, int* NSTEPS,
+             int* ICNTL, int* INFO) {
+  (void)N; (void)A; (void)LA; (void)LIW; (void)W; (void)MAXFRT; (void)IW1; (void)NSTEPS; (void)ICNTL;
+  for (int i = 0; i < 20; ++i) INFO[i] = 0;
+  Solver* s = IW[0] == MAGIC ? lookup(IW[1]) : nullptr;
+  if (!s) {
+    INFO[0] = -1;
+    return;
+  }
+  s->solve(RHS);
+}
+
+// Analysis only (for the Python side's structure check): the largest dense block the pattern
+// gives, or -1 when the pattern cannot be ordered.
+RICCATI_EXPORT int riccati_max_block(int n, int nz, const int* irn, const int* jcn, int* nblocks) {
+  Solver s;
+  const int rc = s.analyse(n, nz, irn, jcn);
+  *nblocks = static_cast<int>(s.blocks.size());
+  if (rc == -1) return -1;
+  return s.max_block;
+}
+
+// Seconds spent so far in: assembly, dense factorisations, Schur complements, solves.
+RICCATI_EXPORT void riccati_profile(double* out) {
+  for (int i = 0; i < 4; ++i) out[i] = profile[i];
+  for (int i = 0; i < 3; ++i) out[4 + i] = shape[i];
+}
+
+}  // extern "C"

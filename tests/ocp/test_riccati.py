@@ -1,0 +1,167 @@
+"""The stage-wise KKT solver (``linear_solver = "riccati"``, src/riccati_kkt.cpp): IPOPT's
+iterates as with MUMPS, the inertia IPOPT's inertia correction needs, and the fall back to MUMPS."""
+
+from __future__ import annotations
+
+import ctypes
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from fatigue_pin.ocp.solver import NlpSolver, SolverOptions, linear_solver_options, riccati_library, riccati_structure
+
+pytestmark = pytest.mark.skipif(riccati_library() is None, reason="the stage-wise solver's library is not built")
+
+
+def pendulum(N: int = 40, states_first: bool = False):
+    """A swing-up of a pendulum by multiple shooting (RK4), with a path inequality per stage; the
+    variables stage by stage, or (``states_first``) all states and then all controls, as the
+    project's transcription orders them."""
+    dt = 0.05
+    X = [ca.SX.sym(f"x{k}", 2) for k in range(N + 1)]
+    U = [ca.SX.sym(f"u{k}") for k in range(N)]
+
+    def f(x, u):
+        return ca.vertcat(x[1], -9.81 * ca.sin(x[0]) - 0.1 * x[1] + u)
+
+    g, lbg, ubg, J = [], [], [], 0
+    for k in range(N):
+        x, u = X[k], U[k]
+        k1 = f(x, u)
+        k2 = f(x + dt / 2 * k1, u)
+        k3 = f(x + dt / 2 * k2, u)
+        k4 = f(x + dt * k3, u)
+        g += [X[k + 1] - (x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)), X[k + 1][0] + 0.1 * u]
+        lbg += [0, 0, -20]
+        ubg += [0, 0, 20]
+        J += 0.1 * u**2 + 0.01 * x[0] ** 2 + (0.5 * (u - U[k - 1]) ** 2 if k else 0)
+    J += 10 * ca.sumsqr(X[N])
+    if states_first:
+        w = X + U
+        lbw = [np.pi, 0] + [-10, -10] * N + [-3] * N
+    else:
+        w = [v for k in range(N) for v in (X[k], U[k])] + [X[N]]
+        lbw = [np.pi, 0, -3] + [-10, -10, -3] * (N - 1) + [-10, -10]
+    ubw = [-v if i >= 2 else v for i, v in enumerate(lbw)]
+    return {"x": ca.vertcat(*w), "f": J, "g": ca.vertcat(*g)}, dict(lbx=lbw, ubx=ubw, lbg=lbg, ubg=ubg)
+
+
+def iterations(nlp, bounds, linear_solver):
+    opts = {"ipopt": {**linear_solver_options(linear_solver), "print_level": 0, "sb": "yes", "max_iter": 100}, "print_time": False}
+    solver = ca.nlpsol("s", "ipopt", nlp, opts)
+    solver(x0=0, **bounds)
+    return solver.stats()
+
+
+@pytest.mark.parametrize("states_first", [False, True])
+def test_ipopt_iterates_are_mumps_iterates(states_first):
+    nlp, bounds = pendulum(states_first=states_first)
+    ric, mumps = iterations(nlp, bounds, "riccati"), iterations(nlp, bounds, "mumps")
+    assert ric["return_status"] == mumps["return_status"] == "Solve_Succeeded"
+    assert ric["iter_count"] == mumps["iter_count"]
+    a, b = ric["iterations"], mumps["iterations"]
+    for key in ("obj", "inf_pr", "inf_du"):
+        np.testing.assert_allclose(a[key], b[key], rtol=1e-8, atol=1e-12)
+    # the inertia correction ran (a regularised iteration) and took the same decisions
+    np.testing.assert_array_equal(np.asarray(a["regularization_size"]) > 0, np.asarray(b["regularization_size"]) > 0)
+
+
+def ma27(lib, rows, cols, values, n, rhs):
+    """Analysis, factorisation and one solve through the MA27 entry points; (INFO(1), INFO(15), x)."""
+    i32 = lambda v: ctypes.byref(ctypes.c_int(v))  # noqa: E731
+    ptr = lambda a: a.ctypes.data_as(ctypes.c_void_p)  # noqa: E731
+    irn, jcn = (np.asarray(v, dtype=np.int32) + 1 for v in (rows, cols))
+    a = np.asarray(values, dtype=float).copy()
+    nz = irn.size
+    icntl, cntl, info = np.zeros(30, np.int32), np.zeros(5), np.zeros(20, np.int32)
+    iw, ikeep, iw1 = np.zeros(2 * nz + 3 * n + 16, np.int32), np.zeros(3 * n, np.int32), np.zeros(2 * n, np.int32)
+    nsteps, iflag, maxfrt, ops = ctypes.c_int(0), ctypes.c_int(0), ctypes.c_int(0), ctypes.c_double(0)
+    lib.ma27id_(ptr(icntl), ptr(cntl))
+    lib.ma27ad_(i32(n), i32(nz), ptr(irn), ptr(jcn), ptr(iw), i32(iw.size), ptr(ikeep), ptr(iw1), ctypes.byref(nsteps),
+                ctypes.byref(iflag), ptr(icntl), ptr(cntl), ptr(info), ctypes.byref(ops))
+    assert info[0] == 0
+    lib.ma27bd_(i32(n), i32(nz), ptr(irn), ptr(jcn), ptr(a), i32(a.size), ptr(iw), i32(iw.size), ptr(ikeep),
+                ctypes.byref(nsteps), ctypes.byref(maxfrt), ptr(iw1), ptr(icntl), ptr(cntl), ptr(info))
+    flag, negative = int(info[0]), int(info[14])
+    x = np.array(rhs, dtype=float)
+    if flag == 0:
+        w = np.zeros(16)
+        lib.ma27cd_(i32(n), ptr(a), i32(a.size), ptr(iw), i32(iw.size), ptr(w), ctypes.byref(maxfrt), ptr(x), ptr(iw1),
+                    ctypes.byref(nsteps), ptr(icntl), ptr(info))
+    return flag, negative, x
+
+
+def random_kkt(rng, stages=12, nx=4, nu=2, hessian_scale=1.0):
+    """A random augmented system [H, J^T; J, -d I] of a stage-wise OCP (dynamics rows
+    x_{k+1} - A x_k - B u_k), indefinite H blocks, in the NLP's order (primal, then rows)."""
+    nw = stages * (nx + nu) + nx
+    m = stages * nx
+    K = np.zeros((nw + m, nw + m))
+    for k in range(stages + 1):
+        s = k * (nx + nu)
+        size = nx + nu if k < stages else nx
+        Q = rng.normal(size=(size, size)) * hessian_scale
+        K[s:s + size, s:s + size] = Q + Q.T
+    for k in range(stages):
+        s, r = k * (nx + nu), nw + k * nx
+        K[r:r + nx, s:s + nx] = -rng.normal(size=(nx, nx))
+        K[r:r + nx, s + nx:s + nx + nu] = -rng.normal(size=(nx, nu))
+        K[r:r + nx, s + nx + nu:s + 2 * nx + nu] = np.eye(nx)
+    K = np.tril(K)
+    K[nw:, nw:] -= np.eye(m) * rng.choice([0.0, 1e-8])
+    K = K + np.tril(K, -1).T
+    return K
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_inertia_is_the_eigenvalue_count(seed):
+    lib = ctypes.CDLL(str(riccati_library()))
+    rng = np.random.default_rng(seed)
+    K = random_kkt(rng, hessian_scale=[0.1, 1.0, 10.0][seed % 3])
+    rows, cols = np.nonzero(np.tril(K))
+    rows, cols = np.concatenate([rows, np.arange(len(K))]), np.concatenate([cols, np.arange(len(K))])
+    values = np.concatenate([K[np.nonzero(np.tril(K))], np.zeros(len(K))])  # duplicates are summed
+    b = rng.normal(size=len(K))
+    flag, negative, x = ma27(lib, rows, cols, values, len(K), b)
+    assert flag == 0
+    assert negative == int(np.sum(np.linalg.eigvalsh(K) < 0))
+    np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
+
+
+def test_a_singular_matrix_is_reported():
+    lib = ctypes.CDLL(str(riccati_library()))
+    K = random_kkt(np.random.default_rng(1))
+    K[-1, :] = 0.0
+    K[:, -1] = 0.0  # a row with no entry: a zero eigenvalue
+    rows, cols = np.nonzero(np.tril(K) + np.eye(len(K)))
+    flag, _, _ = ma27(lib, rows, cols, K[rows, cols], len(K), np.ones(len(K)))
+    assert flag == 3  # MA27's "singular" (IPOPT then regularises)
+
+
+def test_a_cost_coupling_all_stages_falls_back_to_mumps(capsys, monkeypatch):
+    import fatigue_pin.ocp.solver as solver_module
+
+    monkeypatch.setattr(solver_module, "RICCATI_MAX_BLOCK", 30)  # a stage here is 6 rows; all controls, 40
+    N = 40
+    opti = ca.Opti()
+    X = opti.variable(2, N + 1)
+    U = opti.variable(1, N)
+    opti.subject_to(X[:, 0] == 0)
+    for k in range(N):
+        opti.subject_to(X[:, k + 1] == X[:, k] + 0.1 * ca.vertcat(X[1, k], U[0, k]))
+    opti.minimize(ca.sumsqr(X) + ca.sum2(U) ** 2)  # (sum of all controls)^2: every stage with every other
+    nlp, _ = pendulum(10)
+    hess = ca.Sparsity.dense(100, 100)
+    assert "dense block" in riccati_structure(hess, ca.Sparsity(0, N))
+    solver = NlpSolver(opti, SolverOptions(linear_solver="riccati", compile=False), name="riccati_fallback")
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "MUMPS instead" in said[0] and "dense block" in said[0]
+    assert solver.options.linear_solver == "mumps"
+    assert riccati_structure(*_patterns(nlp)) is None
+
+
+def _patterns(nlp):
+    x = nlp["x"]
+    lam = ca.SX.sym("lam", nlp["g"].numel())
+    return ca.hessian(nlp["f"] + ca.dot(lam, nlp["g"]), x)[0].sparsity(), ca.jacobian(nlp["g"], x).sparsity()
