@@ -124,13 +124,13 @@ class RunResult:
 
     def half_units(self, half: int | str) -> JointUnits:
         """The units of the joint that actuator half ``half`` (its column, or its name
-        ``<joint>_plus`` / ``<joint>_minus``) drives."""
+        ``<joint>_plus`` / ``<joint>_minus``; a motor's name is its joint's) drives."""
         name = self.actuator_names[half] if isinstance(half, int) else half
-        return self.joint_units(name.rpartition("_")[0])
+        return self.joint_units(name if name in self.joint_names else name.rpartition("_")[0])
 
     @property
     def actuation(self) -> str:
-        """The actuator kind of the run (``torque``: signed torque halves; ``muscles``)."""
+        """The actuator kind of the run (``torque``: signed torque halves; ``muscles``; ``motors``)."""
         return str(self.attrs.get("actuation", "torque"))
 
     @property
@@ -224,7 +224,7 @@ class RunResult:
     @property
     def passive_joints(self) -> tuple[str, ...]:
         """The joints without actuator halves."""
-        driven = {half_joint(n)[0] for n in self.actuator_names if n not in self.muscle_names}
+        driven = {n if n in self.joint_names else half_joint(n)[0] for n in self.actuator_names if n not in self.muscle_names}
         return tuple(j for j in self.joint_names if j not in driven)
 
     @property
@@ -288,11 +288,16 @@ def joint_columns(run_joints: tuple[str, ...], halves: tuple[str, ...], tau_halv
                   skip: Collection[str] = ()) -> tuple[np.ndarray, np.ndarray]:
     """``(tau_plus, tau_minus)``, each (intervals, joints) with 0 on joints without a half, from
     the torques of the named halves (intervals, halves): the inverse of :meth:`RunResult.half_torques`.
-    The columns of the units named in ``skip`` (a muscle run's muscles) are left out."""
+    The columns of the units named in ``skip`` (a muscle run's muscles) are left out; a unit named
+    after a joint (a motor) gives its signed torque's positive and negative parts."""
     tau_halves = np.asarray(tau_halves, dtype=float).reshape(-1, len(halves))
     plus, minus = np.zeros((tau_halves.shape[0], len(run_joints))), np.zeros((tau_halves.shape[0], len(run_joints)))
     for k, name in enumerate(halves):
         if name in skip:
+            continue
+        if name in run_joints:  # a motor: its signed torque
+            j = run_joints.index(name)
+            plus[:, j], minus[:, j] = np.maximum(tau_halves[:, k], 0.0), np.minimum(tau_halves[:, k], 0.0)
             continue
         joint, side = half_joint(name)
         if joint not in run_joints:

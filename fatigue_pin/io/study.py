@@ -289,9 +289,26 @@ class Study:
                              f"{model.name!r}; its joints are {list(model.joint_names)}")
         if actuation.kind == "muscles":
             return self.muscle_actuators(model)
+        if actuation.kind == "motors":
+            return self.motor_actuators(model)
         if self.data["fatigue"].get("muscles"):
             raise StudyError("fatigue.muscles: per-muscle fatigue models need muscles; expected [actuators] kind = \"muscles\"")
         return SignedTorqueActuators.from_model(model, self.fatigue_spec(model), actuation)
+
+    def motor_actuators(self, model):
+        """The :class:`~fatigue_pin.ocp.motor_actuators.MotorActuators` of ``model``: a motor on
+        every joint but the passive ones (``actuators.passive``, or a zero effort limit), chosen by
+        ``[motors]`` (:func:`~fatigue_pin.motors.study_table.motors_of`; without the table, the
+        model's stand-ins)."""
+        from fatigue_pin.motors.study_table import motors_of
+        from fatigue_pin.ocp.motor_actuators import MotorActuators
+
+        passive = set(self.actuation().passive)
+        actuated = [j for j, hi in zip(model.joint_names, model.tau_upper) if j not in passive and hi > 0]
+        try:
+            return MotorActuators.from_model(model, motors_of(self.data.get("motors", {}), model.joint_names, actuated, model.name))
+        except FatiguePinError as exc:
+            raise StudyError(str(exc)) from None
 
     def muscles(self):
         """The :class:`~fatigue_pin.muscles.muscle_set.MuscleSet` of ``[model] muscles``, or of the

@@ -20,13 +20,14 @@ from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, JointRange, JointTarget, StateTarget, Task
 from fatigue_pin.ocp.transcription import Transcription
 from fatigue_pin.robot.model import ModelSource
+from fatigue_pin.core.errors import FatiguePinError
 from fatigue_pin.core.text import plain, shown
 
 #: The tables read by the class they configure (``[task]``: :func:`task_table`).
 SECTIONS: dict[str, type] = {"model": ModelSource, "actuators": Actuation, "transcription": Transcription, "horizon": Horizon,
                              "solver": SolverOptions}
 #: The keys at the top of a study.
-TOP_KEYS = ("name", "model", "actuators", "fatigue", "task", "costs", "transcription", "horizon", "solver", "labels")
+TOP_KEYS = ("name", "model", "actuators", "fatigue", "motors", "task", "costs", "transcription", "horizon", "solver", "labels")
 #: The arrays of tables of ``[task]``, after Task's own keys (its ``items`` field, built from them).
 TASK_ARRAYS = ("targets", "ranges", "planes")
 #: A frame target table names FrameOrientation's fields thus (beside FrameTarget's own keys).
@@ -220,9 +221,19 @@ def normalise(data: dict[str, Any]) -> dict[str, Any]:
     out["task"] = task_table(data["task"])[0]
     for section in ("actuators", "transcription", "horizon", "solver"):
         out[section] = read_table(SECTIONS[section], data.get(section, {}), section)[0]
-    if "fatigue" not in data:
+    motors = out["actuators"]["kind"] == "motors"
+    if "fatigue" not in data and not motors:  # a motor's capacity is its temperatures: [motors]
         raise StudyError("missing table [fatigue]: expected a fatigue model and its parameters (or a preset)")
-    out["fatigue"] = _fatigue_table(data["fatigue"])
+    out["fatigue"] = _fatigue_table(data.get("fatigue", {}))
+    if "motors" in data:
+        from fatigue_pin.motors.study_table import check_motors_table
+
+        if not motors:
+            raise StudyError('[motors]: motors are an actuator kind; expected [actuators] kind = "motors", or no [motors] table')
+        try:
+            out["motors"] = check_motors_table(data["motors"])
+        except FatiguePinError as exc:
+            raise StudyError(str(exc)) from None
     out["costs"] = _costs_table(data.get("costs", {}))
     labels = data.get("labels", {})
     if not isinstance(labels, dict) or not all(isinstance(v, (str, int, float, bool)) for v in labels.values()):
@@ -292,6 +303,10 @@ def to_toml(data: dict[str, Any]) -> str:
     table("fatigue", {k: v for k, v in fat.items() if k != "joints"})
     for joint, sub in fat.get("joints", {}).items():
         table(f"fatigue.joints.{_toml_key(joint)}", sub)
+    if "motors" in data:
+        table("motors", {k: v for k, v in data["motors"].items() if k != "joints"})
+        for joint, sub in data["motors"].get("joints", {}).items():
+            table(f"motors.joints.{_toml_key(joint)}", sub)
     table("task", data["task"])
     for kind in TASK_ARRAYS:
         for item in data["task"].get(kind, []):

@@ -14,8 +14,9 @@ from fatigue_pin.core.settings import check_fields, is_bool, is_number, is_strs,
 __all__ = ["ACTUATOR_KINDS", "COUPLINGS", "MUSCLE_PATHS", "Actuation"]
 
 #: The actuator kinds of a study: ``torque``: signed torque halves on the joints; ``muscles``: the
-#: muscles of ``[model] muscles`` (docs/muscles.md).
-ACTUATOR_KINDS = ("torque", "muscles")
+#: muscles of ``[model] muscles`` (docs/muscles.md); ``motors``: a motor on every actuated joint,
+#: its temperatures the capacity states (``[motors]``, docs/motors.md).
+ACTUATOR_KINDS = ("torque", "muscles", "motors")
 
 #: How the torque of a half and its fatigue are coupled (docs/model.md, "Couplings"):
 #: ``tl+mf<=1``: the torque is the control, fatigue is integrated from its target load TL, and
@@ -70,6 +71,9 @@ class Actuation:
         if self.kind != "muscles" and self.residuals > 0:
             raise ParameterError(f"Actuation.residuals = {self.residuals:g}: residual torques go beside muscles; expected "
                                  "kind = 'muscles', or residuals = 0")
+        if self.kind == "motors" and self.coupling == "active":
+            raise ParameterError("Actuation.coupling = 'active' with kind = 'motors': a motor's torque is its control and its "
+                                 "temperatures only bound it; expected coupling 'tl+mf<=1' or 'observed' (both mean the same for motors)")
         if self.kind != "muscles" and self.activation_dynamics:
             raise ParameterError("Actuation.activation_dynamics = true: activations are muscle states; expected kind = 'muscles', "
                                  "or activation_dynamics = false")

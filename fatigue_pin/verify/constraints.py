@@ -68,9 +68,11 @@ def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float
 
 
 def _control_label(s: Stored, unit: str) -> str:
-    """``tau_plus elbow`` for a half, ``activation BRA`` for a muscle."""
+    """``tau_plus elbow`` for a half, ``activation BRA`` for a muscle, ``tau elbow`` for a motor."""
     if unit in s.run.muscle_names:
         return f"activation {unit}"
+    if unit in s.run.joint_names:
+        return f"tau {unit}"
     joint, side = half_joint(unit)
     return f"tau_{side} {joint}"
 
@@ -78,7 +80,8 @@ def _control_label(s: Stored, unit: str) -> str:
 def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], float]:
     """q within the URDF limits, |qdot| within the velocity limits, each torque half within
     [0, limit] (plus) or [limit, 0] (minus), each muscle's activation in [0, 1] (its limit is 1),
-    fatigue states in [0, 1]."""
+    fatigue states in [0, 1] (a motor's signed torque within [-limit, limit], its normalised
+    temperatures in [0, 1]: T_w <= T_max - margin)."""
     run, model, joints = s.run, s.robot.pin_model, s.joints
     q_lo, q_hi = np.array(model.lowerPositionLimit, dtype=float), np.array(model.upperPositionLimit, dtype=float)
     v_max = np.array(model.velocityLimit, dtype=float)
@@ -87,7 +90,10 @@ def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], f
         b_q, at_bq = worst(np.maximum(q_lo - run.q, run.q - q_hi), joints, "node")
         b_v, at_bv = worst(np.abs(run.qdot) - v_max, joints, "node")
         sign, tau = np.sign(s.limits), run.half_torques()  # plus halves in [0, limit], minus halves in [limit, 0]
-        b_t, at_bt = worst(np.maximum(-sign * tau, sign * tau - np.abs(s.limits)), [h.name for h in s.halves], "interval")
+        if run.actuation == "motors":  # a motor's signed torque in [-limit, limit]
+            sign = np.zeros_like(sign)
+        b_t, at_bt = worst(np.maximum(-sign * tau, np.abs(sign) * tau + (sign == 0) * np.abs(tau) - np.abs(s.limits)),
+                           [h.name for h in s.halves], "interval")
         b_m, at_bm = worst(np.maximum(-s.M, s.M - 1.0), s.state_labels, "node")
     checks = [
         VerifyCheck("bound q", b_q, s.units("position"), tol.bound, at_bq),
@@ -108,11 +114,12 @@ def invariant_checks(s: Stored) -> tuple[list[VerifyCheck], float, float, str]:
     invariant, at_inv = worst(inv, [h.name for h in s.halves], "node")
     last = inv[-1][np.isfinite(inv[-1])]
     inv_final = float(last.max()) if last.size else 0.0
-    kinds = {h.kind: " + ".join(h.model.total_states()) for h in s.halves}
+    kinds = {h.kind: " + ".join(h.model.total_states()) if h.model.state_total is not None else "none" for h in s.halves}
     invariant_sum = "; ".join(f"{k}: {v}" for k, v in kinds.items())
     name_sum = next(iter(kinds.values())) if len(kinds) == 1 else "sum of each half's states"
     checks = [
-        VerifyCheck(f"invariant |1 - ({name_sum})|", invariant, "1", None, at_inv),
+        VerifyCheck(f"invariant |1 - ({name_sum})|" if name_sum != "none" else "invariant (none: the states have no sum)",
+                    invariant, "1", None, at_inv),
         VerifyCheck("invariant at the last node", inv_final, "1", None, f"node {s.N}"),
     ]
     return checks, invariant, inv_final, invariant_sum

@@ -124,10 +124,13 @@ class Stored:
     def invariant(self, M: np.ndarray) -> np.ndarray:
         """``|1 - sum|`` of each half's states that its model sums to 1
         (:meth:`~fatigue_pin.fatigue.interface.FatigueModel.total_states`), (nodes, halves), from
-        fatigue states M laid out as :attr:`M`."""
+        fatigue states M laid out as :attr:`M`; NaN where the model has no such sum
+        (``state_total`` None)."""
         off = self.offsets
         cols = [[off[i] + h.states.index(n) for n in h.model.total_states()] for i, h in enumerate(self.halves)]
-        return np.abs(1.0 - np.column_stack([M[:, c].sum(axis=1) for c in cols]))
+        sums = np.column_stack([M[:, c].sum(axis=1) if h.model.state_total is not None else np.full(M.shape[0], np.nan)
+                                for c, h in zip(cols, self.halves)]) if cols else np.zeros((M.shape[0], 0))
+        return np.abs(1.0 - sums)  # NaN for a model without an invariant (a motor's temperatures)
 
     @property
     def state_labels(self) -> list[str]:
@@ -183,10 +186,11 @@ def _muscles(run: RunResult, robot, notes: list[str]) -> tuple[Any, np.ndarray |
     their activations (N, nm); (None, None) for a run of torque halves. A run solved on polynomial
     paths (attribute ``muscle_paths``) is checked on those polynomials, and ``notes`` gets how far
     they are from the exact paths along the run."""
-    if run.actuation == "torque":
+    if run.actuation in ("torque", "motors"):  # the joint torques are the stored controls
         return None, None
     if run.actuation != "muscles":
-        raise ResultFileError(f"run {run.name!r}: actuation = {run.actuation!r}; verify checks runs of torque halves and muscles")
+        raise ResultFileError(f"run {run.name!r}: actuation = {run.actuation!r}; verify checks runs of torque halves, muscles "
+                              "and motors")
     from fatigue_pin.muscles.files import read_muscles
     from fatigue_pin.verify.muscle_torque import NumericMuscles
 
@@ -323,13 +327,20 @@ def _robot(run: RunResult, study, notes: list[str]):
 
 def _limits(run: RunResult, robot, notes: list[str]) -> np.ndarray:
     """Signed torque limits (plus, minus per joint), as stored (:attr:`RunResult.signed_limits`);
-    for a muscle run, 1 for each muscle (its activation at TL = 1), then its residual halves'."""
+    for a muscle run, 1 for each muscle (its activation at TL = 1), then its residual halves'; for
+    a motor run, each motor's limit (> 0; its torque is signed)."""
     try:
         signed = run.signed_limits
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ResultFileError):
             raise
         raise ResultFileError(f"run {run.name!r}: attribute tau_limits = {shown(run.attrs.get('tau_limits'))} is not a list of numbers") from None
+    if run.actuation == "motors":  # a motor's limit bounds its signed torque on its joint
+        if signed.size != len(run.actuator_names) or not np.all(np.isfinite(signed)) or np.any(signed <= 0) \
+                or any(j not in robot.joint_names for j in run.actuator_names):
+            raise ResultFileError(f"run {run.name!r}: torque limits {signed.tolist()} N m for the motors {list(run.actuator_names)}; "
+                                  "expected a finite limit > 0 for each motor, on a joint of the model")
+        return signed
     nm = len(run.muscle_names)
     if nm:
         if not np.array_equal(signed[:nm], np.ones(nm)):
@@ -371,6 +382,7 @@ def _fatigue_params(run: RunResult) -> dict[str, dict]:
 def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
     """The actuator halves from the ``fatigue_params`` attribute."""
     from fatigue_pin.fatigue.models import FATIGUE_MODELS
+    from fatigue_pin.motors.thermal_states import MotorThermal
     from fatigue_pin.muscles.activation import SUFFIX, unit_model
 
     per_half = _fatigue_params(run)
@@ -382,11 +394,11 @@ def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
             raise ResultFileError(f"run {run.name!r}: fatigue_params has no entry for half {name!r}; it has {sorted(per_half)}")
         values = dict(per_half[name])
         kind = values.pop("model", "xia")
-        if kind.removesuffix(SUFFIX) not in FATIGUE_MODELS:
+        if kind.removesuffix(SUFFIX) not in FATIGUE_MODELS and kind != MotorThermal.kind:
             raise ResultFileError(f"run {run.name!r}: half {name!r} uses fatigue model {kind!r}, unknown here; known: {sorted(FATIGUE_MODELS)} "
                                   f"(muscles with activation dynamics: {SUFFIX!r} after one)")
         try:
-            model = unit_model(kind, **values)
+            model = MotorThermal(**values) if kind == MotorThermal.kind else unit_model(kind, **values)
         except (FatiguePinError, TypeError) as exc:
             raise ResultFileError(f"run {run.name!r}: fatigue parameters of half {name!r}: {exc}") from None
         params = model.as_dict()

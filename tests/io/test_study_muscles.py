@@ -82,5 +82,5 @@ def test_muscle_keys_that_need_muscles_are_refused_on_torque_halves(arm26):
         small_curl("full").replace({"actuators.residuals": 50.0})
     with pytest.raises(StudyError, match="fatigue.muscles: per-muscle fatigue models need muscles"):
         small_curl("full").replace({"fatigue.muscles": {"BRA": {"F": 0.1}}}).actuators(arm26)
-    with pytest.raises(StudyError, match=r"actuators.kind = 'motors': expected one of \['torque', 'muscles'\]"):
-        small_curl("full").replace({"actuators.kind": "motors"})
+    with pytest.raises(StudyError, match=r"actuators.kind = 'pistons': expected one of \['torque', 'muscles', 'motors'\]"):
+        small_curl("full").replace({"actuators.kind": "pistons"})
