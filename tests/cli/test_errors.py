@@ -212,6 +212,15 @@ class Case:
     api: Callable[[Env], Any] | None = None
 
 
+def _motors(**fields: Any) -> Callable[[dict], None]:
+    """The study's joints driven by maxon RE 30 motors, with ``fields`` in [motors]."""
+    def mutate(data: dict) -> None:
+        data["actuators"]["kind"] = "motors"
+        data["motors"] = {"preset": "maxon-re30", **fields}
+
+    return mutate
+
+
 def _run(study: Callable[[Env], str]) -> Callable[[Env], list[str]]:
     return lambda e: ["run", study(e), "--out", str(e.existing)]
 
@@ -522,15 +531,21 @@ CASES: list[Case] = [
          r"log.csv: winding_C never changes \(all 40.0 deg C\): expected a temperature that rises or falls",
          lambda e: ["calibrate-thermal", e.write("log.csv", "time_s,current_A,winding_C\n" + "".join(f"{k},1,40\n" for k in range(6))),
                     "--motor", "maxon-re30", "--out", e.path("fit.json")]),
-    Case("motor-gear-ratio", API, "`motor_preset(\"maxon-re30\", gear_ratio=0)`",
+    Case("motor-gear-ratio", STUDY, "`[motors] gear_ratio = 0` (the curl's joints driven by motors)",
+         r"motors: joint 'shoulder': MotorParameters.gear_ratio = 0: expected a gear ratio > 0",
+         _run(lambda e: e.study(_motors(gear_ratio=0)))),
+    Case("motor-t-max-below-ambient", STUDY, "`[motors] preset = \"maxon-re30\"`, `T_ambient = 130` (T_max 125 deg C)",
+         r"MotorParameters.T_max = 125.0: expected above T_ambient \+ margin = 130 \+ 10.0",
+         _run(lambda e: e.study(_motors(T_ambient=130)))),
+    Case("motor-thermal-resistance", STUDY, "`[motors] R_ha = -1`",
+         r"MotorParameters.R_ha = -1: expected a thermal resistance > 0 \(K/W\)",
+         _run(lambda e: e.study(_motors(R_ha=-1)))),
+    Case("motor-unknown-joint", STUDY, "`[motors.joints.knee]` on arm26 (no knee)",
+         r"motors.joints.knee: motor on joint 'knee': expected a joint of the model \['shoulder', 'elbow'\]",
+         _run(lambda e: e.study(_motors(joints={"knee": {"gear_ratio": 50.0}})))),
+    Case("motor-preset-api", API, "`motor_preset(\"maxon-re30\", gear_ratio=0)`",
          r"MotorParameters.gear_ratio = 0: expected a gear ratio > 0",
          api=lambda e: __import__("fatigue_pin.motors.presets", fromlist=["x"]).motor_preset("maxon-re30", gear_ratio=0)),
-    Case("motor-t-max-below-ambient", API, "`motor_preset(\"maxon-re30\", T_ambient=130)` (T_max 125 deg C)",
-         r"MotorParameters.T_max = 125.0: expected above T_ambient \+ margin = 130 \+ 10.0",
-         api=lambda e: __import__("fatigue_pin.motors.presets", fromlist=["x"]).motor_preset("maxon-re30", T_ambient=130)),
-    Case("motor-thermal-resistance", API, "`motor_preset(\"maxon-re30\", R_ha=-1)`",
-         r"MotorParameters.R_ha = -1: expected a thermal resistance > 0 \(K/W\)",
-         api=lambda e: __import__("fatigue_pin.motors.presets", fromlist=["x"]).motor_preset("maxon-re30", R_ha=-1)),
     Case("empty-loads", FATIGUE, "`endurance --loads ,` (no load)", r"--loads ',': expected comma-separated fractions",
          lambda e: ["endurance", "--loads", ",", "--out", e.path("endurance")]),
     Case("endurance-too-many-cycles", FATIGUE, "an intermittent task of 0.01 s cycles beyond `--max-cycles 20`",
