@@ -162,6 +162,7 @@ class MheEstimator(OpenLoopEstimator):
         self.index = np.array(index, dtype=int)
         self.nominal = actuators.param_vector()[self.index]
         self._fatigued = np.array(actuators.fatigued_rows())
+        self._measured = np.array(actuators.measured_rows())
         self._actuators = actuators
         self._solvers: dict[int, ca.Function] = {}
         self._traj: dict[int, ca.Function] = {}
@@ -191,9 +192,10 @@ class MheEstimator(OpenLoopEstimator):
         M = ca.horzcat(m0, traj)
         mf = M[self._fatigued.tolist(), :]
         capacity = 1 - mf
-        f = ca.sumsqr(YM * (Y - capacity)) / s.probe_std**2
-        f += ca.sumsqr(SM * (TL - capacity[:, :L])) / s.saturation_std**2
-        f += ca.sumsqr(ca.fmax(0, TL + mf[:, :L] - 1)) / s.saturation_std**2
+        f = ca.sumsqr(YM * (Y - (1 - M[self._measured.tolist(), :]))) / s.probe_std**2  # the probes (a motor's housing)
+        if A.capacity_limits_load:  # a saturated half's capacity was its load; no load above capacity
+            f += ca.sumsqr(SM * (TL - capacity[:, :L])) / s.saturation_std**2
+            f += ca.sumsqr(ca.fmax(0, TL + mf[:, :L] - 1)) / s.saturation_std**2
         f += ca.sumsqr(m0 - mbar) / s.state_std**2
         f += ca.sumsqr((theta - tbar) / ca.DM(np.maximum(self.nominal, 1e-12))) / s.param_std**2
         params = ca.vertcat(ca.vec(U), ca.vec(Y), ca.vec(YM), ca.vec(TL), ca.vec(SM), mbar, tbar, p_base)

@@ -193,6 +193,7 @@ class Plant:
         # the halves' own right-hand sides with the plant's parameters (one owner of the equations)
         self._rates = ca.Function("plant_rates", [m, u], [self.actuators.fatigue_rates(m, u)])
         self._fatigued = [L.nq + L.nv + r for r in self.actuators.fatigued_rows()]
+        self._measured = [L.nq + L.nv + r for r in self.actuators.measured_rows()]
         self._constant, self._std = self.settings.disturbance.vectors(self.model.joint_names)
         self._limits_u = self.actuators.controls(self.actuators.signed_limits)  # in control order
 
@@ -208,9 +209,13 @@ class Plant:
     def deliver(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """The torques (nu,) the plant delivers for the command ``u`` (nu,) in state ``x``: each
         half's target load limited to its capacity ``max(1 - mf, 0)`` (the sign of a command is
-        not corrected: the solver's bounds hold up to its bound relaxation, about 1e-8)."""
+        not corrected: the solver's bounds hold up to its bound relaxation, about 1e-8). A motor
+        (:attr:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.capacity_limits_load` False)
+        delivers its command while its winding is below the limit, and trips to 0 at it."""
         cap = self.actuators.controls(np.maximum(self.capacity(x), 0.0))  # in control order
         TL = np.asarray(u, dtype=float) / self._limits_u
+        if not self.actuators.capacity_limits_load:
+            return np.where(cap > 0.0, TL, 0.0) * self._limits_u
         return np.minimum(TL, cap) * self._limits_u
 
     def disturbance(self, node: int) -> np.ndarray:
@@ -290,8 +295,10 @@ class Plant:
         return q, v
 
     def probe(self, x: np.ndarray, node: int) -> np.ndarray:
-        """Measured capacity ``1 - mf`` of every half (half order) at ``node``, shape (n_halves,)."""
-        c = self.capacity(x)
+        """Measured capacity ``1 - mf`` of every half (half order) at ``node``, shape (n_halves,):
+        ``1 -`` the state of :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.measured_rows`
+        (a motor's housing)."""
+        c = 1.0 - np.asarray(x)[self._measured]
         if self.settings.noise.capacity > 0:
             c = c + self.settings.noise.capacity * self._rng(node, _PROBE).standard_normal(c.size)
         return c

@@ -41,7 +41,7 @@ from fatigue_pin.io.tables import _toml_key, _toml_value
 from fatigue_pin.core.text import plain, shown
 
 #: Tables of the study a [plant] table may override.
-PLANT_OVERRIDES = ("model", "fatigue")
+PLANT_OVERRIDES = ("model", "fatigue", "motors")
 #: Keys of [plant] that are the plant's own settings (not overrides).
 PLANT_OWN = ("noise", "disturbance", "integrator", "substeps", "rtol", "atol")  # fields of PlantSettings but seed
 #: Top-level keys a closed-loop study adds.

@@ -77,6 +77,10 @@ class ActuationLayer:
     units_per_joint = True
     #: the actuator kind, one of :data:`~fatigue_pin.ocp.actuation.ACTUATOR_KINDS` (run records name it)
     kind = "torque"
+    #: whether a unit's load is limited by what is not fatigued (a tired half or muscle delivers
+    #: at most ``1 - m_fatigued`` of its limit: a closed loop's plant caps it there); False for a
+    #: motor, whose temperature bounds its state, not its torque
+    capacity_limits_load = True
 
     def _set_units(self, units: tuple, joint_names: tuple[str, ...], coupling: str, words: tuple[str, str]) -> None:
         """Check the coupling against the units' fatigue models and keep the three: ``words`` are
@@ -194,6 +198,12 @@ class ActuationLayer:
     def fatigued_rows(self) -> list[int]:
         """Row of each half's fatigued fraction (its model's ``fatigued_state``), length n_halves."""
         return [off + h.params.state_index(h.params.fatigued_state) for h, off in zip(self._halves, self.state_offsets())]
+
+    def measured_rows(self) -> list[int]:
+        """Row of the state a capacity probe of each unit measures (a closed loop's
+        :meth:`Plant.probe <fatigue_pin.drivers.plant.Plant.probe>` gives ``1 -`` it): the
+        fatigued fraction (an MVC test), length n_halves."""
+        return self.fatigued_rows()
 
     def active_rows(self) -> list[int]:
         """Row of each half's active fraction (its model's ``active_state``), length n_halves."""

@@ -63,6 +63,9 @@ class MotorActuators(ActuationLayer):
     units_per_joint = False
     kind = "motors"
     torque_follows_state = False
+    #: a motor delivers its command while its winding is below the limit (a closed loop's plant
+    #: trips it to 0 at the limit)
+    capacity_limits_load = False
 
     def __init__(self, joint_names: tuple[str, ...], motors: Mapping[str, MotorParameters], limits: Mapping[str, float]) -> None:
         unknown = [j for j in motors if j not in joint_names]
@@ -165,6 +168,11 @@ class MotorActuators(ActuationLayer):
     def controls_for_torques(self, tau: np.ndarray, q: np.ndarray | None = None, qdot: np.ndarray | None = None) -> np.ndarray:
         """Controls (N, nu) for joint torques (N, nv): the motors' joints' torques, clipped to the limits."""
         return np.clip(np.asarray(tau, dtype=float)[:, self.actuated_index], -self.limits, self.limits)
+
+    def measured_rows(self) -> list[int]:
+        """The housing's state ``x_h`` of every motor: what a sensor on the motor (a UR's joint
+        temperature) measures; a probe gives ``1 - x_h``."""
+        return self.state_rows("xh")
 
     # -- temperatures and records ----------------------------------------------------------------------
 
