@@ -100,3 +100,10 @@ def test_the_architecture_page_names_every_module():
     missing = [f"{layer}/{p.name}" for layer in LAYERS for p in sorted((PACKAGE / layer).glob("*.py"))
                if p.name != "__init__.py" and p.name not in blocks.get(layer, "")]
     assert missing == [], f"modules missing from docs/architecture.md: {missing}"
+
+
+def test_test_modules_have_unique_names():
+    """pytest imports test files of folders without __init__.py by their basename: two of the
+    same name stop the whole collection ("import file mismatch")."""
+    names = [p.name for p in (Path(__file__).resolve().parent).rglob("test_*.py")]
+    assert sorted({n for n in names if names.count(n) > 1}) == []
