@@ -121,6 +121,21 @@ end = "receding"
 """
 
 
+def mhe_closed_loop(folder, study, plant: str, params: list[str]):
+    """``fatigue-pin mpc`` on ``study`` (one-cycle windows of a sliding study) with the [plant]
+    table text ``plant``, re-planned every cycle (``end = "receding"``) with the moving-horizon
+    estimator of ``params``: the run, read back."""
+    from fatigue_pin.cli.main import main
+    from fatigue_pin.io.results import read_run
+
+    path = folder / "closed_loop.toml"
+    path.write_text(f'{study.to_toml()}\n{plant}\n\n[mpc]\nreplan_every = {study.task().intervals_per_cycle}\nend = "receding"\n'
+                    f'estimator = "mhe"\n\n[mpc.mhe]\nparams = {params!r}\n'.replace("'", '"'))
+    out = folder / "closed_loop.h5"
+    assert main(["mpc", str(path), "--out", str(out)]) == 0
+    return read_run(out)
+
+
 def small_mpc_study(tables: str = "", seed: int | None = None, max_cycles: int = 3) -> str:
     """TOML text of the small curl (10 intervals per cycle, 2 RK4 substeps, uncompiled) as a
     closed-loop study with a 3-cycle window; ``tables`` adds [plant...] and [mpc] tables."""

@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Iterator
 
-from fatigue_pin.core.errors import OutputLocationError
+from fatigue_pin.core.errors import CalibrationDataError, OutputLocationError
 from fatigue_pin.core.signals import deferred
 
 #: bytes a folder must have free, at the least, to receive outputs
@@ -191,3 +191,28 @@ def check_output_file(path: str | Path, suffix: str | None = None) -> Path:
     check_folder(folder, f"output folder {str(folder)!r}")
     check_space(folder, MIN_FREE_BYTES, f"writing {str(path)!r}")
     return path
+
+
+def read_csv_table(p: Path, what: str) -> tuple[list[str], list[dict[str, str]], str]:
+    """The header (stripped), the rows and the delimiter of the CSV file ``p``, a file of ``what``
+    (``"endurance data"``): the delimiter is ``,``, or ``;`` or a tab where the first line has no
+    comma (Excel writes ``;`` where the decimal mark is a comma); a byte-order mark is skipped.
+
+    Raises:
+        CalibrationDataError: a missing or unreadable file (one line naming it).
+    """
+    import csv
+
+    if not p.is_file():
+        raise CalibrationDataError(f"{what} {str(p)!r} does not exist (or is not a file): expected a CSV file")
+    try:
+        with p.open(newline="", encoding="utf-8-sig") as fh:
+            first = fh.readline()
+            fh.seek(0)
+            delimiter = max(",;\t", key=first.count) if first.count(",") == 0 else ","
+            reader = csv.DictReader(fh, delimiter=delimiter)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            rows = list(reader)
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise CalibrationDataError(f"{what} {str(p)!r} is not a readable CSV file ({exc})") from None
+    return header, rows, delimiter

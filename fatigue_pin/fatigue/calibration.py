@@ -22,7 +22,6 @@ intervals are asymmetric). The result is written as JSON usable as a preset
 
 from __future__ import annotations
 
-import csv
 import datetime
 import json
 import math
@@ -37,7 +36,7 @@ from scipy.stats import t as student_t
 
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
 from fatigue_pin.core.errors import CalibrationDataError, ParameterError
-from fatigue_pin.core.files import atomic_write_bytes, check_output_file
+from fatigue_pin.core.files import atomic_write_bytes, check_output_file, read_csv_table
 from fatigue_pin.core.settings import check_fields, default_of, is_number, replaced, setting
 from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.core.text import shown
@@ -172,19 +171,7 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
             the row, the column and the value).
     """
     p = Path(path)
-    if not p.is_file():
-        raise CalibrationDataError(f"endurance data {str(p)!r} does not exist (or is not a file): expected a CSV file")
-    try:
-        with p.open(newline="", encoding="utf-8-sig") as fh:  # utf-8-sig: a byte-order mark (Excel) is skipped
-            first = fh.readline()
-            fh.seek(0)
-            # Excel writes ';' where the decimal mark is a comma, and tab-separated files are common
-            delimiter = max(",;\t", key=first.count) if first.count(",") == 0 else ","
-            reader = csv.DictReader(fh, delimiter=delimiter)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            rows = list(reader)
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise CalibrationDataError(f"endurance data {str(p)!r} is not a readable CSV file ({exc})") from None
+    header, rows, delimiter = read_csv_table(p, "endurance data")
     twice = sorted({h for h in header if header.count(h) > 1})
     if twice:
         raise CalibrationDataError(f"{p.name}: column(s) {twice} appear more than once (columns: {header}): expected each column once")

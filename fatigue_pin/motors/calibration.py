@@ -24,7 +24,6 @@ preset's, unless ``fit`` says otherwise (asking for all four from a housing log 
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import json
 import math
@@ -37,7 +36,7 @@ from scipy.linalg import expm
 from scipy.optimize import least_squares
 
 from fatigue_pin.core.errors import CalibrationDataError, ParameterError
-from fatigue_pin.core.files import atomic_write_bytes, check_output_file
+from fatigue_pin.core.files import atomic_write_bytes, check_output_file, read_csv_table
 from fatigue_pin.core.settings import check_fields, check_values, is_number, is_str, is_strs, replaced, setting
 from fatigue_pin.motors.motor import REFERENCE_C, MotorParameters
 from fatigue_pin.motors.presets import MOTOR_PRESETS, motor_preset
@@ -91,19 +90,7 @@ class ThermalLog:
 
 
 def _read_rows(p: Path) -> tuple[list[str], list[dict[str, str]], str]:
-    if not p.is_file():
-        raise CalibrationDataError(f"thermal data {str(p)!r} does not exist (or is not a file): expected a CSV file")
-    try:
-        with p.open(newline="", encoding="utf-8-sig") as fh:
-            first = fh.readline()
-            fh.seek(0)
-            delimiter = max(",;\t", key=first.count) if first.count(",") == 0 else ","
-            reader = csv.DictReader(fh, delimiter=delimiter)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            rows = list(reader)
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise CalibrationDataError(f"thermal data {str(p)!r} is not a readable CSV file ({exc})") from None
-    return header, rows, delimiter
+    return read_csv_table(p, "thermal data")
 
 
 def _one_of(header: list[str], names: tuple[str, ...], name: str) -> str:

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from conftest import small_curl
-from fatigue_pin.cli.main import main
-from fatigue_pin.io.results import read_run
+from conftest import small_curl, mhe_closed_loop
 
 #: A small, fast motor (time constants of 0.5 s and 2 s, so that a 2 s loop sees its heat)
 #: behind a gear of 150 on each of the curl's joints.
@@ -21,12 +19,7 @@ def test_a_motor_closed_loop_estimates_the_hotter_plant_from_its_housings(tmp_pa
     motor's housing cooling rate c = 1 / tau_m (tau_m is a product with R_ha), one-cycle windows
     re-planned every cycle."""
     study = small_curl("sliding", cycles=1, max_cycles=2).replace({"actuators.kind": "motors", "motors": TOY})
-    path = tmp_path / "motors_mpc.toml"
-    path.write_text(study.to_toml() + '\n[plant.motors]\nR_ha = 9.3\n\n[mpc]\nreplan_every = 10\nend = "receding"\n'
-                    'estimator = "mhe"\n\n[mpc.mhe]\nparams = ["q_h", "b", "c"]\n')
-    out = tmp_path / "m.h5"
-    assert main(["mpc", str(path), "--out", str(out)]) == 0
-    run = read_run(out)
+    run = mhe_closed_loop(tmp_path, study, "[plant.motors]\nR_ha = 9.3", ["q_h", "b", "c"])
     assert run.actuation == "motors" and run.n_cycles == 2
     # the plant ran hotter than the plan: its housings' rise is larger than the prediction's
     xh, pred = run.fatigue["xh"], run.extras["prediction"]

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from conftest import muscle_curl, two_muscle_file
-from fatigue_pin.cli.main import main
-from fatigue_pin.io.results import read_run
+from conftest import muscle_curl, two_muscle_file, mhe_closed_loop
 
 
 def test_a_muscle_closed_loop_estimates_its_muscles_fatigue(tmp_path):
@@ -16,12 +14,7 @@ def test_a_muscle_closed_loop_estimates_its_muscles_fatigue(tmp_path):
     controller believes (F = 0.0228 against 0.456); one-cycle windows re-planned every cycle,
     the moving-horizon estimator with a capacity probe every cycle."""
     study = muscle_curl(two_muscle_file(tmp_path), **{"horizon.kind": "sliding", "horizon.cycles": 1, "horizon.max_cycles": 2})
-    path = tmp_path / "muscles_mpc.toml"
-    path.write_text(study.to_toml() + '\n[plant.fatigue]\nF = 0.0228\n\n[mpc]\nreplan_every = 10\nend = "receding"\n'
-                    'estimator = "mhe"\n\n[mpc.mhe]\nparams = ["F"]\n')
-    out = tmp_path / "m.h5"
-    assert main(["mpc", str(path), "--out", str(out)]) == 0
-    run = read_run(out)
+    run = mhe_closed_loop(tmp_path, study, "[plant.fatigue]\nF = 0.0228", ["F"])
     assert run.actuation == "muscles" and run.n_cycles == 2 and run.attrs["repetitions"] == 2
     nodes, intervals = run.q.shape[0], run.tau_plus.shape[0]
     # the plant's muscles: their forces and the joint torque at every interval start, stored
