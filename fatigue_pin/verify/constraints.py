@@ -92,8 +92,8 @@ def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], f
         sign, tau = np.sign(s.limits), run.half_torques()  # plus halves in [0, limit], minus halves in [limit, 0]
         if run.actuation == "motors":  # a motor's signed torque in [-limit, limit]
             sign = np.zeros_like(sign)
-        b_t, at_bt = worst(np.maximum(-sign * tau, np.abs(sign) * tau + (sign == 0) * np.abs(tau) - np.abs(s.limits)),
-                           [h.name for h in s.halves], "interval")
+        beyond = np.where(sign == 0, np.abs(tau), sign * tau) - np.abs(s.limits)  # past the limit (a motor: either way)
+        b_t, at_bt = worst(np.maximum(-sign * tau, beyond), [h.name for h in s.halves], "interval")
         b_m, at_bm = worst(np.maximum(-s.M, s.M - 1.0), s.state_labels, "node")
     checks = [
         VerifyCheck("bound q", b_q, s.units("position"), tol.bound, at_bq),
