@@ -17,7 +17,6 @@ into an ``nlpsol`` once and re-solves it with new parameter values as often as n
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import os
 import sys
@@ -30,14 +29,12 @@ from typing import Any, Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.core.settings import check_fields, is_bool, is_int, is_number, is_str, is_strs, setting
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.core.signals import watch
 from fatigue_pin.core.streams import captured
 from fatigue_pin.ocp.compiled import BuildOptions, cache_folder, cached_build, compile_shared, host_key, verify_entry
 from fatigue_pin.ocp.ipopt_process import check_ipopt_options, limit_blas_threads
-from fatigue_pin.core.text import shown
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
@@ -470,11 +467,8 @@ class NlpSolver:
     def _check_riccati(self) -> None:
         """Fall back to MUMPS, with one line on stderr saying why, where the stage-wise solver
         cannot take this NLP (:func:`riccati_structure`, on the patterns IPOPT will see)."""
-        why = "the stage-wise solver's library is not installed"
-        if riccati_library() is not None:
-            solver = next(iter(self._solvers.values()))
-            why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0),
-                                    solver.get_function("nlp_jac_g").sparsity_out(1))
+        solver = next(iter(self._solvers.values()))
+        why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1))
         if why is not None:
             print(f"solver.linear_solver = 'riccati': {self._label} is solved with MUMPS instead ({why})", file=sys.stderr)
             self.options = replace(self.options, linear_solver="mumps")

@@ -90,10 +90,8 @@ def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], f
         b_q, at_bq = worst(np.maximum(q_lo - run.q, run.q - q_hi), joints, "node")
         b_v, at_bv = worst(np.abs(run.qdot) - v_max, joints, "node")
         sign, tau = np.sign(s.limits), run.half_torques()  # plus halves in [0, limit], minus halves in [limit, 0]
-        if run.actuation == "motors":  # a motor's signed torque in [-limit, limit]
-            sign = np.zeros_like(sign)
-        beyond = np.where(sign == 0, np.abs(tau), sign * tau) - np.abs(s.limits)  # past the limit (a motor: either way)
-        b_t, at_bt = worst(np.maximum(-sign * tau, beyond), [h.name for h in s.halves], "interval")
+        beyond = np.abs(tau) - s.limits if run.actuation == "motors" else np.maximum(-sign * tau, sign * tau - np.abs(s.limits))
+        b_t, at_bt = worst(beyond, [h.name for h in s.halves], "interval")  # a motor's signed torque in [-limit, limit]
         b_m, at_bm = worst(np.maximum(-s.M, s.M - 1.0), s.state_labels, "node")
     checks = [
         VerifyCheck("bound q", b_q, s.units("position"), tol.bound, at_bq),

@@ -16,7 +16,7 @@ def test_a_muscle_closed_loop_estimates_its_muscles_fatigue(tmp_path):
     study = muscle_curl(two_muscle_file(tmp_path), **{"horizon.kind": "sliding", "horizon.cycles": 1, "horizon.max_cycles": 2})
     run = mhe_closed_loop(tmp_path, study, "[plant.fatigue]\nF = 0.0228", ["F"])
     assert run.actuation == "muscles" and run.n_cycles == 2 and run.attrs["repetitions"] == 2
-    nodes, intervals = run.q.shape[0], run.tau_plus.shape[0]
+    intervals = run.tau_plus.shape[0]
     # the plant's muscles: their forces and the joint torque at every interval start, stored
     assert run.extras["muscle_force"].shape == (intervals, 2) and run.extras["joint_torque"].shape == (intervals, 2)
     assert np.all(run.extras["muscle_force"] >= 0) and run.extras["muscle_force"].max() > 50.0  # N

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fatigue_pin.cli.main import main
-from fatigue_pin.core.errors import CalibrationDataError, ParameterError
+from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.motors.calibration import ThermalLog, calibrate_thermal, read_thermal_csv, simulate
 from fatigue_pin.motors.presets import motor_preset
 
