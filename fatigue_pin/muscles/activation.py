@@ -33,10 +33,9 @@ import numpy as np
 from fatigue_pin.core.errors import DimensionError, ParameterError
 from fatigue_pin.core.text import shown
 from fatigue_pin.fatigue.interface import STABILITY_LIMITS, FatigueModel
-from fatigue_pin.fatigue.models import FATIGUE_MODELS, fatigue_model, model_of_class
 from fatigue_pin.muscles.curves import activation_rate
 
-__all__ = ["ACTIVATION", "SUFFIX", "ActivatedFatigue", "activated", "with_activation", "unit_model", "activation_stiffness"]
+__all__ = ["ACTIVATION", "SUFFIX", "ActivatedFatigue", "activated", "with_activation", "activation_stiffness"]
 
 #: The activation's state name.
 ACTIVATION = "a"
@@ -154,15 +153,3 @@ def with_activation(params: FatigueModel, activation_time: float, deactivation_t
     values = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
     return activated(type(params))(**values, activation_time=activation_time, deactivation_time=deactivation_time,
                                    activation_smoothing=activation_smoothing)
-
-
-def unit_model(kind: str, **params: float) -> FatigueModel:
-    """The model of a unit by kind, as a run stores it: a fatigue model's kind
-    (:func:`~fatigue_pin.fatigue.models.fatigue_model`), or one with :data:`SUFFIX` for a muscle
-    with activation dynamics."""
-    if not kind.endswith(SUFFIX):
-        return fatigue_model(kind, **params)
-    base = kind[: -len(SUFFIX)]
-    if base not in FATIGUE_MODELS:
-        raise ParameterError(f"fatigue model {kind!r} is unknown; expected one of {sorted(FATIGUE_MODELS)}, with or without {SUFFIX!r}")
-    return model_of_class(activated(FATIGUE_MODELS[base]), **params)

@@ -27,7 +27,7 @@ from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.ocp.actuation import COUPLINGS
 from fatigue_pin.ocp.halves import FatigueGroup
 
-__all__ = ["ActuationLayer", "column"]
+__all__ = ["ActuationLayer", "column", "unit_model"]
 
 Expr = Union[ca.SX, ca.MX, ca.DM, np.ndarray]
 
@@ -42,6 +42,28 @@ def column(x: Expr, n: int, what: str) -> Expr:
     if a.shape != (n,):
         raise DimensionError(f"{what} of shape {np.shape(x)}: expected {n} entries")
     return ca.DM(a)
+
+
+def unit_model(kind: str, **params: float) -> FatigueModel:
+    """The model of a unit from the kind and parameters a run stores of it (``fatigue_params``,
+    :func:`~fatigue_pin.drivers.run.fatigue_parameters`): a fatigue model
+    (:func:`~fatigue_pin.fatigue.models.fatigue_model`), one with the activation dynamics in
+    front (kind ``<model>+activation``, :func:`~fatigue_pin.muscles.activation.activated`), or a
+    motor's temperatures (:class:`~fatigue_pin.motors.thermal_states.MotorThermal`).
+
+    Raises:
+        ParameterError: an unknown kind, unknown or missing parameters, bad values.
+    """
+    from fatigue_pin.fatigue.models import FATIGUE_MODELS, model_of_class
+    from fatigue_pin.motors.thermal_states import MotorThermal
+    from fatigue_pin.muscles.activation import SUFFIX, activated
+
+    base = kind.removesuffix(SUFFIX)
+    classes = {MotorThermal.kind: MotorThermal, **FATIGUE_MODELS}
+    if base not in classes or (base != kind and base not in FATIGUE_MODELS):
+        raise ParameterError(f"fatigue model {kind!r} is unknown; expected one of {sorted(classes)} "
+                             f"(muscles with activation dynamics: {SUFFIX!r} after one of {sorted(FATIGUE_MODELS)})")
+    return model_of_class(activated(classes[base]) if base != kind else classes[base], **params)
 
 
 @dataclass(frozen=True)

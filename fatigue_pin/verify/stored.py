@@ -381,9 +381,7 @@ def _fatigue_params(run: RunResult) -> dict[str, dict]:
 
 def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
     """The actuator halves from the ``fatigue_params`` attribute."""
-    from fatigue_pin.fatigue.models import FATIGUE_MODELS
-    from fatigue_pin.motors.thermal_states import MotorThermal
-    from fatigue_pin.muscles.activation import SUFFIX, unit_model
+    from fatigue_pin.ocp.actuation_layer import unit_model
 
     per_half = _fatigue_params(run)
     if len(run.actuator_names) != limits.size:
@@ -394,11 +392,8 @@ def _halves(run: RunResult, limits: np.ndarray) -> list[Half]:
             raise ResultFileError(f"run {run.name!r}: fatigue_params has no entry for half {name!r}; it has {sorted(per_half)}")
         values = dict(per_half[name])
         kind = values.pop("model", "xia")
-        if kind.removesuffix(SUFFIX) not in FATIGUE_MODELS and kind != MotorThermal.kind:
-            raise ResultFileError(f"run {run.name!r}: half {name!r} uses fatigue model {kind!r}, unknown here; known: {sorted(FATIGUE_MODELS)} "
-                                  f"(muscles with activation dynamics: {SUFFIX!r} after one)")
         try:
-            model = MotorThermal(**values) if kind == MotorThermal.kind else unit_model(kind, **values)
+            model = unit_model(kind, **values)
         except (FatiguePinError, TypeError) as exc:
             raise ResultFileError(f"run {run.name!r}: fatigue parameters of half {name!r}: {exc}") from None
         params = model.as_dict()

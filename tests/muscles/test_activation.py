@@ -14,7 +14,8 @@ from scipy.integrate import solve_ivp
 
 from fatigue_pin.core.errors import FatiguePinError, ParameterError
 from fatigue_pin.fatigue.models import XiaFatigue
-from fatigue_pin.muscles.activation import activated, activation_stiffness, unit_model, with_activation
+from fatigue_pin.muscles.activation import activated, activation_stiffness, with_activation
+from fatigue_pin.ocp.actuation_layer import unit_model
 
 XIA = XiaFatigue(LD=10.0, LR=10.0, F=0.01, R=0.002, S=10.0)
 
