@@ -194,9 +194,10 @@ def check_output_file(path: str | Path, suffix: str | None = None) -> Path:
 
 
 def read_csv_table(p: Path, what: str) -> tuple[list[str], list[dict[str, str]], str]:
-    """The header (stripped), the rows and the delimiter of the CSV file ``p``, a file of ``what``
-    (``"endurance data"``): the delimiter is ``,``, or ``;`` or a tab where the first line has no
-    comma (Excel writes ``;`` where the decimal mark is a comma); a byte-order mark is skipped.
+    """The header, the rows (column -> text, both stripped) and the delimiter of the CSV file
+    ``p``, a file of ``what`` (``"endurance data"``): the delimiter is ``,``, or ``;`` or a tab
+    where the first line has no comma (Excel writes ``;`` where the decimal mark is a comma); a
+    byte-order mark is skipped; :func:`csv_number` reads a cell.
 
     Raises:
         CalibrationDataError: a missing or unreadable file (one line naming it).
@@ -212,7 +213,20 @@ def read_csv_table(p: Path, what: str) -> tuple[list[str], list[dict[str, str]],
             delimiter = max(",;\t", key=first.count) if first.count(",") == 0 else ","
             reader = csv.DictReader(fh, delimiter=delimiter)
             header = [h.strip() for h in (reader.fieldnames or [])]
-            rows = list(reader)
+            rows = [{k.strip(): (v or "").strip() for k, v in raw.items() if k is not None} for raw in reader]
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise CalibrationDataError(f"{what} {str(p)!r} is not a readable CSV file ({exc})") from None
     return header, rows, delimiter
+
+
+def csv_number(text: str, delimiter: str, where: str) -> float:
+    """The number in a cell of a table of :func:`read_csv_table` (a decimal comma where the
+    delimiter is ``;``); ``where`` names the cell (``"data.csv: row 3: time_s"``).
+
+    Raises:
+        CalibrationDataError: the cell is not a number.
+    """
+    try:
+        return float(text.replace(",", ".") if delimiter == ";" else text)
+    except ValueError:
+        raise CalibrationDataError(f"{where} = {text!r}: expected a number") from None

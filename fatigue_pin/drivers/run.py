@@ -126,7 +126,7 @@ class RunResult:
         """The units of the joint that actuator half ``half`` (its column, or its name
         ``<joint>_plus`` / ``<joint>_minus``; a motor's name is its joint's) drives."""
         name = self.actuator_names[half] if isinstance(half, int) else half
-        return self.joint_units(name if name in self.joint_names else name.rpartition("_")[0])
+        return self.joint_units(unit_joint(name, self.joint_names)[0])
 
     @property
     def actuation(self) -> str:
@@ -224,7 +224,7 @@ class RunResult:
     @property
     def passive_joints(self) -> tuple[str, ...]:
         """The joints without actuator halves."""
-        driven = {n if n in self.joint_names else half_joint(n)[0] for n in self.actuator_names if n not in self.muscle_names}
+        driven = {unit_joint(n, self.joint_names)[0] for n in self.actuator_names if n not in self.muscle_names}
         return tuple(j for j in self.joint_names if j not in driven)
 
     @property
@@ -275,6 +275,12 @@ class RunResult:
         return slice(cycle * n, (cycle + 1) * n + 1)
 
 
+def unit_joint(name: str, joints: Collection[str]) -> tuple[str, str]:
+    """The joint a unit drives and its side: ``("elbow", "plus")`` for the half ``elbow_plus``
+    (:func:`half_joint`), ``("elbow", "")`` for a motor, which is named after its joint."""
+    return (name, "") if name in joints else half_joint(name)
+
+
 def half_joint(name: str) -> tuple[str, str]:
     """``("elbow", "plus")`` from the half name ``"elbow_plus"`` (:attr:`ActuatorHalf.name
     <fatigue_pin.ocp.actuators.ActuatorHalf.name>`)."""
@@ -295,13 +301,13 @@ def joint_columns(run_joints: tuple[str, ...], halves: tuple[str, ...], tau_halv
     for k, name in enumerate(halves):
         if name in skip:
             continue
-        if name in run_joints:  # a motor: its signed torque
-            j = run_joints.index(name)
-            plus[:, j], minus[:, j] = np.maximum(tau_halves[:, k], 0.0), np.minimum(tau_halves[:, k], 0.0)
-            continue
-        joint, side = half_joint(name)
+        joint, side = unit_joint(name, run_joints)
         if joint not in run_joints:
             raise ResultFileError(f"actuator half {name!r} drives no joint of {list(run_joints)}")
+        if not side:  # a motor: its signed torque
+            j = run_joints.index(joint)
+            plus[:, j], minus[:, j] = np.maximum(tau_halves[:, k], 0.0), np.minimum(tau_halves[:, k], 0.0)
+            continue
         (plus if side == "plus" else minus)[:, run_joints.index(joint)] = tau_halves[:, k]
     return plus, minus
 

@@ -36,7 +36,7 @@ from scipy.stats import t as student_t
 
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
 from fatigue_pin.core.errors import CalibrationDataError, ParameterError
-from fatigue_pin.core.files import atomic_write_bytes, check_output_file, read_csv_table
+from fatigue_pin.core.files import atomic_write_bytes, check_output_file, csv_number, read_csv_table
 from fatigue_pin.core.settings import check_fields, default_of, is_number, replaced, setting
 from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.core.text import shown
@@ -185,17 +185,13 @@ def read_endurance_csv(path: str | Path) -> EnduranceData:
     if unknown:
         raise CalibrationDataError(f"{p.name}: unknown column(s) {unknown}: expected some of {list(_COLUMNS)}")
     values: dict[str, list[float]] = {c: [] for c in _COLUMNS}
-    for i, raw in enumerate(rows, start=1):
-        row = {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}
+    for i, row in enumerate(rows, start=1):
         for col in _COLUMNS:
             text = row.get(col, "")
             if text == "" and col in ("duty_cycle", "cycle_s"):
                 values[col].append(math.nan)
                 continue
-            try:
-                values[col].append(float(text.replace(",", ".") if delimiter == ";" else text))  # ';': decimal commas
-            except ValueError:
-                raise CalibrationDataError(f"{p.name}: row {i}: {col} = {text!r}: expected a number") from None
+            values[col].append(csv_number(text, delimiter, f"{p.name}: row {i}: {col}"))
     if not rows:
         raise CalibrationDataError(f"{p.name}: no data rows: expected one row per task")
     return EnduranceData.from_arrays(values["target_load"], values["endurance_time_s"], values["duty_cycle"],

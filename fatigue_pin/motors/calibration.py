@@ -36,7 +36,7 @@ from scipy.linalg import expm
 from scipy.optimize import least_squares
 
 from fatigue_pin.core.errors import CalibrationDataError, ParameterError
-from fatigue_pin.core.files import atomic_write_bytes, check_output_file, read_csv_table
+from fatigue_pin.core.files import atomic_write_bytes, check_output_file, csv_number, read_csv_table
 from fatigue_pin.core.settings import check_fields, check_values, is_number, is_str, is_strs, replaced, setting
 from fatigue_pin.motors.motor import REFERENCE_C, MotorParameters
 from fatigue_pin.motors.presets import MOTOR_PRESETS, motor_preset
@@ -89,10 +89,6 @@ class ThermalLog:
             object.__setattr__(self, name, x)
 
 
-def _read_rows(p: Path) -> tuple[list[str], list[dict[str, str]], str]:
-    return read_csv_table(p, "thermal data")
-
-
 def _one_of(header: list[str], names: tuple[str, ...], name: str) -> str:
     present = [h for h in names if h in header]
     if len(present) != 1:
@@ -110,21 +106,16 @@ def read_thermal_csv(path: str | Path, motor: MotorParameters) -> ThermalLog:
             times not increasing, a temperature that never changes.
     """
     p = Path(path)
-    header, rows, delimiter = _read_rows(p)
+    header, rows, delimiter = read_csv_table(p, "thermal data")
     if "time_s" not in header:
         raise CalibrationDataError(f"{p.name}: columns {header}: expected time_s, one of {list(_LOADS)} and one of "
                                    f"{list(NODES.values())}")
     load = _one_of(header, _LOADS, p.name)
     temp = _one_of(header, tuple(NODES.values()), p.name)
     columns: dict[str, list[float]] = {c: [] for c in ("time_s", load, temp)}
-    for k, raw in enumerate(rows, start=1):
-        row = {key.strip(): (v or "").strip() for key, v in raw.items() if key is not None}
+    for k, row in enumerate(rows, start=1):
         for c in columns:
-            text = row.get(c, "")
-            try:
-                columns[c].append(float(text.replace(",", ".") if delimiter == ";" else text))
-            except ValueError:
-                raise CalibrationDataError(f"{p.name}: row {k}: {c} = {text!r}: expected a number") from None
+            columns[c].append(csv_number(row.get(c, ""), delimiter, f"{p.name}: row {k}: {c}"))
     current = np.asarray(columns[load], dtype=float)
     if load == "torque_Nm":
         current = motor.current(current, 0.0)

@@ -68,4 +68,4 @@ def cycle_heat_budget(motor: MotorParameters) -> float:
     at ``T_max - margin`` with the no-load loss at the housing, the resistance taken at the limit:
     ``(T_limit - T_a - R_ha P_nl) / (R_wh + R_ha)`` (0 when the no-load loss alone reaches the limit).
     With ``P_w = R i^2`` it is the RMS current ``motor.continuous_current()``."""
-    return max(0.0, (motor.T_limit - motor.T_ambient - motor.R_ha * motor.no_load_loss) / (motor.R_wh + motor.R_ha))
+    return motor.heat_budget()

@@ -141,11 +141,15 @@ class MotorParameters:
     def continuous_current(self, T_ambient: float | None = None) -> float:
         """The current (A) that holds the winding at ``T_max - margin`` in steady state at the
         ambient ``T_ambient`` (deg C; default the motor's), with the no-load loss at the housing."""
+        return math.sqrt(self.heat_budget(T_ambient) / self.resistance(self.T_limit))
+
+    def heat_budget(self, T_ambient: float | None = None) -> float:
+        """The largest mean copper loss (W) that holds the winding at ``T_max - margin`` in steady
+        state at the ambient ``T_ambient`` (deg C; default the motor's), with the no-load loss at
+        the housing: ``(T_limit - T_a - R_ha P_nl) / (R_wh + R_ha)``, 0 when the no-load loss alone
+        reaches the limit."""
         T_a = self.T_ambient if T_ambient is None else T_ambient
-        rise = self.T_limit - T_a - self.R_ha * self.no_load_loss
-        if rise <= 0:
-            return 0.0
-        return math.sqrt(rise / ((self.R_wh + self.R_ha) * self.resistance(self.T_limit)))
+        return max(0.0, (self.T_limit - T_a - self.R_ha * self.no_load_loss) / (self.R_wh + self.R_ha))
 
     def continuous_torque(self, T_ambient: float | None = None) -> float:
         """The joint torque (N m) at :meth:`continuous_current`, without friction:

@@ -181,7 +181,7 @@ class MotorActuators(ActuationLayer):
         m = np.asarray(m, dtype=float)
         T_a = np.array([u.motor.T_ambient for u in self._halves])
         D = np.array([u.motor.T_limit for u in self._halves]) - T_a
-        return T_a + D * m[..., 0::2], T_a + D * m[..., 1::2]
+        return T_a + D * m[..., self.state_rows("xw")], T_a + D * m[..., self.state_rows("xh")]
 
     def run_record(self, q: np.ndarray, qdot: np.ndarray, u: np.ndarray, m: np.ndarray) -> RunRecord:
         """The motors' torques, and their winding and housing temperatures at the start of every

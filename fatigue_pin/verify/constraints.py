@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from fatigue_pin.drivers.run import half_joint
+from fatigue_pin.drivers.run import unit_joint
 from fatigue_pin.verify.fatigue_rhs import numpy_rhs
 from fatigue_pin.verify.report import VerifyCheck, VerifyTolerances, worst
 from fatigue_pin.verify.stored import Stored
@@ -71,10 +71,8 @@ def _control_label(s: Stored, unit: str) -> str:
     """``tau_plus elbow`` for a half, ``activation BRA`` for a muscle, ``tau elbow`` for a motor."""
     if unit in s.run.muscle_names:
         return f"activation {unit}"
-    if unit in s.run.joint_names:
-        return f"tau {unit}"
-    joint, side = half_joint(unit)
-    return f"tau_{side} {joint}"
+    joint, side = unit_joint(unit, s.run.joint_names)
+    return f"tau_{side} {joint}" if side else f"tau {joint}"
 
 
 def bound_checks(s: Stored, tol: VerifyTolerances) -> tuple[list[VerifyCheck], float]:
