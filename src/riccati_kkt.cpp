@@ -26,7 +26,6 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -189,12 +188,6 @@ struct DenseLdl {
     for (int i = 0; i < ns; ++i) x(perm[i]) = work(i);
   }
 };
-
-// Time spent per phase (seconds): assembly, dense Bunch-Kaufman, Schur complement, solves.
-// Read by riccati_profile (benchmarks only).
-double profile[4] = {0, 0, 0, 0};
-double shape[3] = {0, 0, 0};  // last analysis: sums over blocks of size, coupled rows below, coupled columns
-inline double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 
 struct Entry {  // where a triplet goes: up to two places in the block storage
   double* a = nullptr;
@@ -415,16 +408,6 @@ struct Solver {
       for (int r = 0; r < blocks[b + 1].size; ++r)
         if (mark[r]) B.rows.push_back(r);
     }
-    shape[0] = shape[1] = shape[2] = 0;
-    for (int b = 0; b + 1 < nb; ++b) {
-      std::vector<char> k(blocks[b].size, 0);
-      for (int q = blocks[b].start; q < blocks[b].start + blocks[b].size; ++q)
-        for (int j : adj[order[q]])
-          if (block_of[pos[j]] == b + 1) k[q - blocks[b].start] = 1;
-      shape[0] += blocks[b].size;
-      shape[1] += static_cast<double>(blocks[b].rows.size());
-      for (char c : k) shape[2] += c;
-    }
     for (auto& B : blocks) {
       B.ldl.ns = B.size;
       B.ldl.M.resize(B.size + B.rows.size(), B.size + B.rows.size());
@@ -453,7 +436,6 @@ struct Solver {
   }
 
   void factor(const double* a) {
-    double t0 = now();
     double amax = 0.0;
     for (auto& B : blocks) B.ldl.M.setZero();
     for (int k = 0; k < nz; ++k) {
@@ -470,14 +452,9 @@ struct Solver {
     negative = 0;
     singular = false;
     const int nb = static_cast<int>(blocks.size());
-    double t1 = now();
-    profile[0] += t1 - t0;
     for (int b = 0; b < nb; ++b) {
       Block& B = blocks[b];
       B.ldl.factor(tiny);
-      double t2 = now();
-      profile[1] += t2 - t1;
-      t1 = t2;
       if (B.ldl.singular) {
         singular = true;
         return;
@@ -488,15 +465,11 @@ struct Solver {
         Mat& N = blocks[b + 1].ldl.M;
         for (int j = 0; j < r; ++j)
           for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) += B.ldl.M(s + i, s + j);  // rows ascending: lower
-        t2 = now();
-        profile[2] += t2 - t1;
-        t1 = t2;
       }
     }
   }
 
   void solve(double* x) {
-    const double t0 = now();
     for (int q = 0; q < n; ++q) rhs(q) = x[order[q]];
     const int nb = static_cast<int>(blocks.size());
     Vec below, next;
@@ -515,7 +488,6 @@ struct Solver {
       B.ldl.backward(rhs.segment(B.start, B.size), B.w, next);
     }
     for (int q = 0; q < n; ++q) x[order[q]] = rhs(q);
-    profile[3] += now() - t0;
   }
 };
 
@@ -617,12 +589,6 @@ RICCATI_EXPORT int riccati_max_block(int n, int nz, const int* irn, const int* j
   *nblocks = static_cast<int>(s.blocks.size());
   if (rc == -1) return -1;
   return s.max_block;
-}
-
-// Seconds spent so far in: assembly, dense factorisations, Schur complements, solves.
-RICCATI_EXPORT void riccati_profile(double* out) {
-  for (int i = 0; i < 4; ++i) out[i] = profile[i];
-  for (int i = 0; i < 3; ++i) out[4 + i] = shape[i];
 }
 
 }  // extern "C"
