@@ -31,9 +31,9 @@ class OcpBuilder:
         self.progress = progress
         self._functions: IntervalFunctions | None = None
 
-    def __call__(self, n_cycles: int, end_tolerance: float | None = None) -> Ocp:
+    def __call__(self, n_cycles: int, end_tolerance: float | None = None, window_budget: bool = False) -> Ocp:
         ocp = Ocp(self.problem, n_cycles, self.transcription, self.solver, end_tolerance, self.guess, self._functions,
-                  progress=self.progress)
+                  progress=self.progress, window_budget=window_budget)
         self._functions = ocp.functions
         return ocp
 

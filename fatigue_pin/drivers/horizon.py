@@ -71,6 +71,9 @@ class Horizon:
         values.update(self.sliding)
         check_values(SlidingSettings, values)
         object.__setattr__(self, "sliding", values)
+        if values["heat_budget"] and self.kind != "sliding":
+            raise ParameterError(f"horizon.heat_budget = true: expected horizon.kind = \"sliding\" (a budget for windows); "
+                                 f"the kind is {self.kind!r}")
         if self.kind == "sliding":
             self.sliding_settings()  # the relations between the window and the other keys
 

@@ -247,6 +247,9 @@ class ClosedLoop:
         if not isinstance(sliding, SlidingSettings):
             raise ParameterError(f"ClosedLoop: sliding = {sliding!r}: expected SlidingSettings (the controller's window is "
                                  "required, e.g. SlidingSettings(window=3))")
+        if sliding.heat_budget:
+            raise ParameterError("horizon.heat_budget = true: the closed loop re-plans without a heat budget; expected false "
+                                 "(a budget for sliding runs, fatigue-pin run)")
         self.sliding = sliding
         self.mpc = mpc or MpcSettings()
         self.plant_settings = plant or PlantSettings()

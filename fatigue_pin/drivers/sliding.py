@@ -21,6 +21,7 @@ run (the guess of a window only depends on the previous window's stored solution
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from typing import Any, Sequence
@@ -39,6 +40,7 @@ from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import Task
 from fatigue_pin.ocp.transcription import OcpSolution, Transcription
+from fatigue_pin.ocp.window_budget import WindowBudget
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,10 @@ class SlidingSettings:
             primal and dual solution shifted by A cycles (:mod:`fatigue_pin.ocp.warm`), with
             IPOPT's ``warm_start_init_point``, instead of the guess above. A resumed run starts
             its first window cold.
+        heat_budget: every window leaves the task's remaining cycles their heat (motors;
+            :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.window_budget`): the cycle ending
+            at each of its nodes, repeated until ``max_cycles`` (needed), keeps each winding below
+            its limit. A window that fails within its budget is solved again without it.
     """
 
     window: int = setting(expected="an integer number of cycles >= 1", check=lambda v: is_int(v) and v >= 1)
@@ -77,9 +83,13 @@ class SlidingSettings:
     warmup: int = setting(3, "an integer >= 0", lambda v: is_int(v) and v >= 0)
     guess_fatigue: str = setting("integrate", "'integrate' or 'copy'", lambda v: v in ("integrate", "copy"))
     warm_start: bool = setting(False, "true or false", is_bool)
+    heat_budget: bool = setting(False, "true or false", is_bool)
 
     def __post_init__(self) -> None:
         check_fields(self)
+        if self.heat_budget and self.max_cycles is None:
+            raise ParameterError("SlidingSettings.heat_budget = true: expected max_cycles too (the budget spreads the heat "
+                                 "over the task's cycles)")
         if self.advance > self.window:
             raise ParameterError(f"SlidingSettings.advance = {shown(self.advance)}: expected an integer in [1, window = {self.window}]")
         if self.max_cycles is not None and self.max_cycles < self.window:
@@ -205,8 +215,12 @@ class SlidingHorizon:
         self.solver = solver or SolverOptions()
         # a cyclic task's windows end in a box around their start state; a non-cyclic task's windows end
         # at the targets of their phases' ends (no box)
+        if self.sliding.heat_budget and not problem.actuators.has_window_budget:
+            raise ParameterError(f"horizon.heat_budget = true: expected motors (actuators.kind = \"motors\"); the actuators "
+                                 f"are {problem.actuators.kind!r}, which have no heat")
         end_box = self.sliding.end_tolerance if problem.task.cyclic else None
-        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box)
+        self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box,
+                                                                                    window_budget=self.sliding.heat_budget)
         self.model = problem.model
         self.study = study
         self.labels = dict(labels or {})
@@ -219,7 +233,8 @@ class SlidingHorizon:
             "weights": dict(zip(self.ocp.cost_terms, self.problem.weights.tolist())),
             "fatigue": {h.name: [h.params.kind, *h.params.as_vector().tolist()] for h in self.problem.actuators.halves},
             "task": repr(self.problem.task),
-            "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue],
+            "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue,
+                       *(["heat_budget"] if s.heat_budget else [])],
             "transcription": repr(self.ocp.transcription),
             "x_init": self.problem.initial_state().tolist(),
             "model": [self.model.name, repr(self.model.payload)],
@@ -250,6 +265,38 @@ class SlidingHorizon:
         if getattr(self, "_shift", None) is None:
             self._shift = shift_maps(self.ocp, self.sliding.advance)
         return shifted_result(previous, self._shift)
+
+    def window_budget(self, first_cycle: int, state: _State | None) -> WindowBudget | None:
+        """Under ``heat_budget``, the budget of the window starting at cycle ``first_cycle``: the
+        layer's rows of the cycle ending at each of its nodes ``1..K n``, for the whole cycles
+        from that node to the end of cycle ``max_cycles``, with the kept states of the cycle before
+        the window (``state``'s stitched run; none before the first window). None without it."""
+        if not self.sliding.heat_budget:
+            return None
+        n, K, L = self._n, self.sliding.window, self.ocp.layout
+        start, task_end = first_cycle * n, int(self.sliding.max_cycles) * n
+        budget = self.problem.actuators.window_budget
+        none = tuple(np.zeros((self.problem.actuators.n_window_budget, L.n_fatigue)) for _ in range(2))
+        rows = [budget(self.ocp.task.cycle_duration, max((task_end - start - i) // n, 0)) if start + i >= n else none
+                for i in range(1, K * n + 1)]
+        past = np.zeros((n - 1, L.n_fatigue))
+        if state is not None and start >= n:
+            past = state.x[start - n + 1: start, L.m]
+        return WindowBudget(rows, past)
+
+    def _solve_window(self, x_init: np.ndarray, guess: tuple, limit: int | None, warm: Any,
+                      budget: WindowBudget | None) -> tuple[OcpSolution, bool]:
+        """A window's solve within its ``budget``; one that fails there is solved again without
+        it, from the same guess (its iterations and time count both solves). Returns the solution
+        and whether the budget held."""
+        ocp = self.ocp
+        sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None,
+                        budget=budget)
+        if budget is None or sol.success:
+            return sol, budget is not None
+        again = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
+        return dataclasses.replace(again, iterations=sol.iterations + again.iterations,
+                                   wall_time_s=sol.wall_time_s + again.wall_time_s), False
 
     def _iteration_limit(self, state: _State) -> int | None:
         return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)
@@ -384,7 +431,8 @@ class SlidingHorizon:
                 warm = self._warm_start(last) if (self.sliding.warm_start and last is not None) else None
                 if warm is not None:
                     guess = ocp.unflatten(warm.x)
-                sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
+                budget = self.window_budget(first_cycle, state)
+                sol, within = self._solve_window(x_init, guess, limit, warm, budget)
                 last = sol.nlp if sol.success else None
                 solved += 1
                 index = len(state.windows) if state is not None else 0
@@ -399,7 +447,7 @@ class SlidingHorizon:
                         store.write(self._failed_window(sol, first_cycle, failed_window_name(name)))
                     if store is not None:
                         store.write(self._run_result(state, work, ocp.build_time_s))
-                rep.line(self._window_line(index, first_cycle, sol, limit, mf_end.max()))
+                rep.line(self._window_line(index, first_cycle, sol, limit, mf_end.max(), budget, within))
                 bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
             bar.close()
             if state is None:
@@ -429,13 +477,26 @@ class SlidingHorizon:
                 store.write(self._run_result(state, name, self.ocp.build_time_s))
                 store.delete(work)
 
-    def _window_line(self, index: int, first_cycle: int, sol: OcpSolution, limit: int | None, max_mf: float) -> str:
-        """The progress line of a solved window."""
-        K = self.sliding.window
+    def _window_line(self, index: int, first_cycle: int, sol: OcpSolution, limit: int | None, max_mf: float,
+                     budget: WindowBudget | None = None, within: bool = False) -> str:
+        """The progress line of a solved window; with a budget, its largest row (1: the limit
+        at the task's end) and whether the window kept it."""
+        K, L, n = self.sliding.window, self.ocp.layout, self._n
+        note = ""
+        if budget is not None:
+            before = np.vstack([budget.past, sol.x[:, L.m]])  # the node n before each node 1..K n
+            rows = [E_last @ sol.x[i, L.m] + E_before @ before[i - 1] for i, (E_last, E_before) in enumerate(budget.rows, 1)]
+            note = f"  budget {np.max(rows):.3f}" + ("" if within else " (failed within it: solved without)")
         return (f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
                 f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
                 f" (real-time factor {sol.wall_time_s / self._advanced_s:.2f})"
-                f"{'' if limit is None else f' (limit {limit} it)'}  max mf {max_mf:.3f}")
+                f"{'' if limit is None else f' (limit {limit} it)'}  max {self._fatigued_word} {max_mf:.3f}{note}")
+
+    @property
+    def _fatigued_word(self) -> str:
+        """The units' fatigued state as the progress lines name it: ``mf``, or ``xw`` for motors."""
+        names = {u.params.fatigued_state for u in self.ocp.actuators.halves}
+        return names.pop() if len(names) == 1 else "fatigued state"
 
     @staticmethod
     def _working_name(store: RunStore | None, name: str, resume: bool) -> str:

@@ -103,6 +103,8 @@ class ActuationLayer:
     #: at most ``1 - m_fatigued`` of its limit: a closed loop's plant caps it there); False for a
     #: motor, whose temperature bounds its state, not its torque
     capacity_limits_load = True
+    #: whether :meth:`window_budget` gives a sliding window's budget (``heat_budget``)
+    has_window_budget = False
 
     def _set_units(self, units: tuple, joint_names: tuple[str, ...], coupling: str, words: tuple[str, str]) -> None:
         """Check the coupling against the units' fatigue models and keep the three: ``words`` are
@@ -126,6 +128,22 @@ class ActuationLayer:
     def target_loads(self, u: Expr) -> Expr:
         """Target loads (dimensionless) of every unit, (n_units, K), from controls (nu, K)."""
         raise NotImplementedError
+
+    @property
+    def n_window_budget(self) -> int:
+        """Rows of a window's budget (:meth:`window_budget`); 0 for kinds without one."""
+        return 0
+
+    def window_budget(self, cycle_s: float, after: int) -> tuple[np.ndarray, np.ndarray]:
+        """A sliding window's budget: rows ``(E_last, E_before)``, each (n_window_budget,
+        n_states), such that the window keeps ``E_last m(T) + E_before m(T - cycle_s) <= 1``,
+        ``m`` the capacity states at the end and the start of its last cycle, so that ``after``
+        more cycles like it stay within the capacity (motors: the heat budget).
+
+        Only kinds with :attr:`has_window_budget` define it.
+        """
+        raise ParameterError(f"a window budget (horizon.heat_budget) needs an actuation kind with one (motors); "
+                             f"this one is {self.kind!r}")
 
     def activation_rows(self) -> list[int]:
         """Rows of the controls that are muscle activations (the ``activation`` cost term); none

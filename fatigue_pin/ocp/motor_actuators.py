@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import DimensionError, ParameterError
+from fatigue_pin.motors.duty import repeated_cycle_winding
 from fatigue_pin.motors.motor import MotorParameters
 from fatigue_pin.motors.thermal_states import MotorThermal
 from fatigue_pin.ocp.actuation_layer import ActuationLayer, Expr, RunRecord
@@ -66,6 +67,8 @@ class MotorActuators(ActuationLayer):
     #: a motor delivers its command while its winding is below the limit (a closed loop's plant
     #: trips it to 0 at the limit)
     capacity_limits_load = False
+    #: a window ends within the heat budget of the task's remaining cycles (:meth:`window_budget`)
+    has_window_budget = True
 
     def __init__(self, joint_names: tuple[str, ...], motors: Mapping[str, MotorParameters], limits: Mapping[str, float]) -> None:
         unknown = [j for j in motors if j not in joint_names]
@@ -173,6 +176,20 @@ class MotorActuators(ActuationLayer):
         """The housing's state ``x_h`` of every motor: what a sensor on the motor (a UR's joint
         temperature) measures; a probe gives ``1 - x_h``."""
         return self.state_rows("xh")
+
+    @property
+    def n_window_budget(self) -> int:
+        """Rows of a window's heat budget: one per motor (its winding)."""
+        return self.n_actuated
+
+    def window_budget(self, cycle_s: float, after: int) -> tuple[np.ndarray, np.ndarray]:
+        """Each motor's winding after ``after`` more cycles like a window's last
+        (:func:`~fatigue_pin.motors.duty.repeated_cycle_winding`), as rows
+        ``(E_last, E_before)`` (na, n_states) on the states at that cycle's end and start."""
+        E_last, E_before = np.zeros((self.n_actuated, self.n_states)), np.zeros((self.n_actuated, self.n_states))
+        for k, (unit, w, h) in enumerate(zip(self._halves, self.state_rows("xw"), self.state_rows("xh"))):
+            E_last[k, [w, h]], E_before[k, [w, h]] = repeated_cycle_winding(unit.params, cycle_s, after)
+        return E_last, E_before
 
     # -- temperatures and records ----------------------------------------------------------------------
 

@@ -54,6 +54,7 @@ from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solution import OcpSolution, ParameterLayout
 from fatigue_pin.ocp.solver import NLPSOL_OPTIONS, NlpResult, NlpSolver, SolverOptions, simple_bounds
 from fatigue_pin.ocp.task import check_horizon, joint_target_pairs
+from fatigue_pin.ocp.window_budget import WindowBudget, add_budget_rows, budget_values
 from fatigue_pin.core.text import shown
 
 #: Integrators of the shooting intervals.
@@ -125,6 +126,9 @@ class Ocp:
         functions: interval functions to reuse (built from ``problem`` and ``transcription`` if
             None); pass the ones of another Ocp of the same problem to skip rebuilding them.
         progress: where a compile reports itself (a Reporter or a line callback; default quiet).
+        window_budget: add the rows of a window budget (:mod:`fatigue_pin.ocp.window_budget`),
+            their coefficients parameters of each solve (``budget``; none by default): a sliding
+            run's ``heat_budget``.
     """
 
     def __init__(
@@ -137,6 +141,7 @@ class Ocp:
         guess: str = "rest",
         functions: IntervalFunctions | None = None,
         progress: Progress = None,
+        window_budget: bool = False,
     ) -> None:
         t0 = time.perf_counter()
         check_horizon(problem.task, n_cycles, "n_cycles")
@@ -152,6 +157,10 @@ class Ocp:
         self.solver_options = solver or SolverOptions()
         self.end_tolerance = end_tolerance
         self.guess = guess
+        if window_budget and not self.actuators.has_window_budget:
+            raise ParameterError(f"window_budget = true: the {self.actuators.kind!r} actuators have no window budget; "
+                                 "expected motors (the heat budget)")
+        self.window_budget = bool(window_budget)
         self.actuators.check_stabiliser(self.task.dt / self.transcription.substeps, self.transcription.integrator)
         self.n_intervals = N = self.n_cycles * self.task.intervals_per_cycle
         library_mode = self.solver_options.library_mode
@@ -306,6 +315,8 @@ class Ocp:
         opti.subject_to(opti.bounded(X_lb, X, X_ub))
         opti.subject_to(opti.bounded(U_lb, U, U_ub))
         self._task_rows(opti, X, params)
+        if self.window_budget:  # the cycle ending at every node, repeated to the task's end, stays within the capacity
+            add_budget_rows(opti, params, X[layout.m, :], self.task.intervals_per_cycle, self.actuators.n_window_budget)
         opti.minimize(self._objective(X, U, P_weights, mapped))
         return opti
 
@@ -461,6 +472,7 @@ class Ocp:
         x_end: np.ndarray | None = None,
         weights: Mapping[str, float] | np.ndarray | None = None,
         fatigue: np.ndarray | None = None,
+        budget: WindowBudget | None = None,
     ) -> np.ndarray:
         """The NLP parameter vector of one solve.
 
@@ -470,6 +482,7 @@ class Ocp:
                 ``x_init`` (the box around the horizon's initial state).
             weights: cost weights, by name (others keep the problem's) or as a full vector.
             fatigue: stacked fatigue parameters (n_params,); default the actuators'.
+            budget: the window budget of this solve (with ``window_budget``); default none.
         """
         x_init = self.start_state(x_init)
         X_lb, X_ub = self.state_bounds(x_init, x_init if x_end is None else x_end)
@@ -484,6 +497,11 @@ class Ocp:
                 self.task, self.model, self.n_intervals, self.layout, x_init, self.solver_options.constr_viol_tol)
         for sc, nodes in self._state_constraints:
             values[f"{sc.name}_lb"], values[f"{sc.name}_ub"] = bounds.constraint_bounds(sc, nodes, x_init)
+        if self.window_budget:
+            values.update(budget_values(budget, self.task.intervals_per_cycle, self.n_intervals,
+                                        self.actuators.n_window_budget, self.layout.n_fatigue))
+        elif budget is not None:
+            raise ParameterError("budget given to an Ocp built without window_budget")
         return self.params.vector(values)
 
     def weight_vector(self, weights: Mapping[str, float] | np.ndarray | None = None) -> np.ndarray:
@@ -543,6 +561,7 @@ class Ocp:
         max_iter: int | None = None,
         fatigue: np.ndarray | None = None,
         warm_start: bool = False,
+        budget: WindowBudget | None = None,
     ) -> OcpSolution:
         """Solve the OCP.
 
@@ -556,6 +575,7 @@ class Ocp:
             fatigue: fatigue parameters of this solve (n_params,) (default: the actuators').
             warm_start: IPOPT starts from ``guess`` and ``warm``'s multipliers
                 (:data:`~fatigue_pin.ocp.solver.WARM_START_OPTIONS`; :mod:`fatigue_pin.ocp.warm`).
+            budget: the window budget's rows of this solve (:meth:`parameter_vector`).
 
         Returns:
             An :class:`OcpSolution`; check ``success`` before using it as optimal.
@@ -564,7 +584,7 @@ class Ocp:
         if guess is None:
             guess = self.initial_guess(x_init)
         w = self.weight_vector(weights)
-        p = self.parameter_vector(x_init, x_end, w, fatigue)
+        p = self.parameter_vector(x_init, x_end, w, fatigue, budget)
         z0 = self.flatten(*guess)
         res = self.nlp.solve(p, z0, warm.lam_x if warm else None, warm.lam_g if warm else None, max_iter=max_iter,
                              warm_start=warm_start)

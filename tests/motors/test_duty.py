@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
-from scipy.integrate import quad
+from scipy.integrate import quad, solve_ivp
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.motors.calibration import simulate
-from fatigue_pin.motors.duty import cycle_heat_budget, cycle_mean_rise, periodic_orbit
+from fatigue_pin.motors.duty import cycle_heat_budget, cycle_mean_rise, cycle_propagator, periodic_orbit, repeated_cycle_winding
+from fatigue_pin.motors.thermal_states import MotorThermal
 from fatigue_pin.motors.presets import motor_preset
 
 from conftest import integrate, network_ode
@@ -60,3 +63,31 @@ def test_bad_segments_are_one_line():
         periodic_orbit(net, [1.0, 0.0], [1.0, 2.0])
     with pytest.raises(ParameterError, match=r"^periodic_orbit: 2 durations, 1 P_w"):
         periodic_orbit(net, [1.0, 2.0], [1.0])
+
+
+def test_the_repeated_cycle_winding_is_the_cycle_integrated_again_and_again():
+    """A cycle of two loads (TL 0.9 for 0.4 s, then 0.2 for 0.6 s) from a warm start, integrated
+    by solve_ivp on the normalised equations written here (beta = 0: the resistance's rise is what
+    the linear map leaves out): the winding after R more cycles equals the coefficients' prediction
+    from the first cycle's two ends alone; R = 0 is the winding itself."""
+    th = dataclasses.replace(MotorThermal.from_motor(motor_preset("maxon-ec45flat", tau_w=2.0, tau_m=8.0), 10.0), beta=0.0)
+
+    def rhs(t, x):
+        TL = 0.9 if (t % 1.0) < 0.4 else 0.2
+        return [th.q_w * TL * TL - th.a * (x[0] - x[1]), th.q_h + th.b * (x[0] - x[1]) - th.c * x[1]]
+
+    R = 6
+    ends = [np.array([0.3, 0.1])]
+    for k in range(R + 1):  # cycle by cycle, each segment on its own (the load steps)
+        x = ends[-1]
+        for t0, t1 in ((k, k + 0.4), (k + 0.4, k + 1.0)):
+            x = solve_ivp(rhs, (t0, t1), x, method="DOP853", rtol=1e-12, atol=1e-13, first_step=1e-3).y[:, -1]
+        ends.append(x)
+    c_last, c_before = repeated_cycle_winding(th, 1.0, R)
+    assert c_last @ ends[1] + c_before @ ends[0] == pytest.approx(ends[R + 1][0], abs=1e-9)
+    # the propagator is the flow without losses
+    free = solve_ivp(lambda t, x: [-th.a * (x[0] - x[1]), th.b * (x[0] - x[1]) - th.c * x[1]], (0, 1.0), [0.3, 0.1],
+                     method="DOP853", rtol=1e-12, atol=1e-13).y[:, -1]
+    assert np.allclose(cycle_propagator(th, 1.0) @ [0.3, 0.1], free, atol=1e-11)
+    c_last, c_before = repeated_cycle_winding(th, 1.0, 0)
+    assert c_last.tolist() == [1.0, 0.0] and c_before.tolist() == [0.0, 0.0]
