@@ -481,7 +481,7 @@ class SlidingHorizon:
                      budget: WindowBudget | None = None, within: bool = False) -> str:
         """The progress line of a solved window; with a budget, its largest row (1: the limit
         at the task's end) and whether the window kept it."""
-        K, L, n = self.sliding.window, self.ocp.layout, self._n
+        K, L = self.sliding.window, self.ocp.layout
         note = ""
         if budget is not None:
             before = np.vstack([budget.past, sol.x[:, L.m]])  # the node n before each node 1..K n
