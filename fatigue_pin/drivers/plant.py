@@ -207,16 +207,15 @@ class Plant:
         return 1.0 - np.asarray(x)[self._fatigued]
 
     def deliver(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """The torques (nu,) the plant delivers for the command ``u`` (nu,) in state ``x``: each
-        half's target load limited to its capacity ``max(1 - mf, 0)`` (the sign of a command is
-        not corrected: the solver's bounds hold up to its bound relaxation, about 1e-8). A motor
-        (:attr:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.capacity_limits_load` False)
-        delivers its command while its winding is below the limit, and trips to 0 at it."""
+        """The torques (nu,) the plant delivers for the command ``u`` (nu,) in state ``x``: the
+        layer's :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.delivered_loads`. A half's
+        target load is limited to its capacity ``max(1 - mf, 0)`` (the sign of a command is not
+        corrected: the solver's bounds hold up to its bound relaxation, about 1e-8); a motor
+        delivers its command while its winding is below the limit and trips to 0 at it (derated:
+        within ``limit sqrt(1 - x_w)``)."""
         cap = self.actuators.controls(np.maximum(self.capacity(x), 0.0))  # in control order
         TL = np.asarray(u, dtype=float) / self._limits_u
-        if not self.actuators.capacity_limits_load:
-            return np.where(cap > 0.0, TL, 0.0) * self._limits_u
-        return np.minimum(TL, cap) * self._limits_u
+        return self.actuators.delivered_loads(TL, cap) * self._limits_u
 
     def disturbance(self, node: int) -> np.ndarray:
         """Torque disturbance of the interval starting at ``node`` (nv,), N m."""

@@ -306,7 +306,9 @@ class Study:
         passive = set(self.actuation().passive)
         actuated = [j for j, hi in zip(model.joint_names, model.tau_upper) if j not in passive and hi > 0]
         try:
-            return MotorActuators.from_model(model, motors_of(self.data.get("motors", {}), model.joint_names, actuated, model.name))
+            table = self.data.get("motors", {})
+            return MotorActuators.from_model(model, motors_of(table, model.joint_names, actuated, model.name),
+                                             derate=bool(table.get("derate", False)))
         except FatiguePinError as exc:
             raise StudyError(str(exc)) from None
 

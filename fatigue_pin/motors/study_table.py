@@ -5,6 +5,7 @@
     preset = "ur5"                 # a robot's stand-ins, joint by joint (ROBOT_MOTORS), or a motor
                                    # preset (MOTOR_PRESETS) or a calibration JSON for every joint
     T_ambient = 30.0               # any field of MotorParameters: for every motor
+    derate = true                  # bound each torque by its derated limit, limit sqrt(1 - x_w)
     [motors.joints.elbow_joint]    # one joint's own preset and fields
     preset = "maxon-re40"
     gear_ratio = 80.0
@@ -34,11 +35,13 @@ MOTOR_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(MotorPa
 def _check_level(table: Any, where: str, nested: bool) -> dict[str, Any]:
     if not isinstance(table, dict):
         raise ParameterError(f"{where} = {shown(table)}: expected a table")
-    allowed = {"preset", *MOTOR_FIELDS, *(("joints",) if nested else ())}
+    allowed = {"preset", *MOTOR_FIELDS, *(("joints", "derate") if nested else ())}
     for key, value in table.items():
         if key not in allowed:
-            raise ParameterError(f"unknown key {where}.{key}; expected 'preset'{', joints' if nested else ''} or a motor field "
+            raise ParameterError(f"unknown key {where}.{key}; expected 'preset'{', joints, derate' if nested else ''} or a motor field "
                                  f"{list(MOTOR_FIELDS)}")
+        if key == "derate" and not isinstance(value, bool):
+            raise ParameterError(f"{where}.derate = {shown(value)}: expected true or false")
         if key == "preset" and not (isinstance(value, str) and value):
             raise ParameterError(f"{where}.preset = {shown(value)}: expected a robot ({sorted(ROBOT_MOTORS)}), a motor preset "
                                  f"({sorted(MOTOR_PRESETS)}) or a .json file of fatigue-pin calibrate-thermal")

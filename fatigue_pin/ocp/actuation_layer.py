@@ -332,6 +332,12 @@ class ActuationLayer:
             out.append(h.params.rhs()(m[so : so + ns], TL[i], p[po : po + npar]))
         return ca.vertcat(*out)
 
+    def delivered_loads(self, TL: np.ndarray, capacity: np.ndarray) -> np.ndarray:
+        """The target loads a plant delivers for the commanded ``TL`` of units whose capacity is
+        ``capacity`` (``1 - m_fatigued``), both (nu,) in control order: each capped at its
+        capacity (a tired half or muscle). Motors say otherwise."""
+        return np.minimum(np.asarray(TL, dtype=float), np.maximum(np.asarray(capacity, dtype=float), 0.0))
+
     def coupling(self, m: Expr, u: Expr) -> Expr:
         """Torque/fatigue coupling ``TL + fatigued fraction`` per half (dimensionless), shape
         (n_halves,); under the ``tl+mf<=1`` coupling the OCPs bound it to [0, 1]."""

@@ -10,7 +10,9 @@ With na actuated joints of nv:
 * capacity states: each motor's :class:`~fatigue_pin.motors.thermal_states.MotorThermal`
   ``(xw, xh)``, the rises over ambient over the rise the limit allows, so that the [0, 1] bounds
   of the OCPs' fatigue states are ``T_w <= T_max - margin``. The coupling is ``observed`` (the
-  ``tl+mf<=1`` rows have no meaning for heat; the limit is the state bound).
+  ``tl+mf<=1`` rows have no meaning for heat; the limit is the state bound), or, with ``derate``,
+  ``derated``: each torque within its derated limit, ``|tau| <= limit sqrt(1 - x_w)``
+  (:meth:`~fatigue_pin.motors.motor.MotorParameters.derating`), the rows ``0 <= TL^2 + x_w <= 1``.
 
 Friction and the no-load loss's speed dependence are not in the states (the states see the torque
 only); the no-load loss is constant (:mod:`fatigue_pin.motors.motor`).
@@ -59,6 +61,8 @@ class MotorActuators(ActuationLayer):
         joint_names: every joint of the model in model order (nv).
         motors: joint name -> its motor, one per actuated joint (model order is kept).
         limits: joint name -> its torque limit (N m, > 0), for every joint of ``motors``.
+        derate: bound each torque by its derated limit ``limit sqrt(1 - x_w)`` (the coupling
+            ``derated``): a warm motor gives less torque, none at its limit.
     """
 
     units_per_joint = False
@@ -70,7 +74,8 @@ class MotorActuators(ActuationLayer):
     #: a window ends within the heat budget of the task's remaining cycles (:meth:`window_budget`)
     has_window_budget = True
 
-    def __init__(self, joint_names: tuple[str, ...], motors: Mapping[str, MotorParameters], limits: Mapping[str, float]) -> None:
+    def __init__(self, joint_names: tuple[str, ...], motors: Mapping[str, MotorParameters], limits: Mapping[str, float],
+                 derate: bool = False) -> None:
         unknown = [j for j in motors if j not in joint_names]
         if unknown:
             raise ParameterError(f"motor on joint {unknown[0]!r}: expected a joint of the model {list(joint_names)}")
@@ -83,13 +88,38 @@ class MotorActuators(ActuationLayer):
                 raise ParameterError(f"joint {j!r}: torque limit {limit!r}: expected > 0 (N m) for a motor")
             units.append(MotorUnit(j, MotorThermal.from_motor(motors[j], limit), motors[j], limit))
         self._set_units(tuple(units), tuple(joint_names), "observed", ("motor", "motors"))
+        if derate:  # a motor's own coupling (not one of a study's [actuators] couplings)
+            self._coupling = "derated"
 
     @classmethod
-    def from_model(cls, model, motors: Mapping[str, MotorParameters]) -> "MotorActuators":
+    def from_model(cls, model, motors: Mapping[str, MotorParameters], derate: bool = False) -> "MotorActuators":
         """The motors on ``model`` (a :class:`~fatigue_pin.robot.model.RobotModel`): each joint's
         limit is the smaller magnitude of its torque bounds."""
         limits = {j: float(min(-lo, hi)) for j, lo, hi in zip(model.joint_names, model.tau_lower, model.tau_upper)}
-        return cls(tuple(model.joint_names), motors, limits)
+        return cls(tuple(model.joint_names), motors, limits, derate)
+
+    @property
+    def derated(self) -> bool:
+        """Whether each torque is bounded by its derated limit (the coupling ``derated``)."""
+        return self._coupling == "derated"
+
+    @property
+    def coupling_rows(self) -> bool:
+        """Whether the OCPs hold ``0 <= TL^2 + x_w <= 1`` (:attr:`derated`)."""
+        return self.derated
+
+    def coupling(self, m, u):
+        """``TL^2 + x_w`` of every motor, (na,): ``<= 1`` is ``|tau| <= limit sqrt(1 - x_w)``."""
+        TL = self.target_loads(u)
+        return TL * TL + self.fatigued(m)
+
+    def delivered_loads(self, TL: np.ndarray, capacity: np.ndarray) -> np.ndarray:
+        """A motor delivers its command while its winding is below the limit (capacity
+        ``1 - x_w > 0``) and trips to 0 at it; derated, within ``+- sqrt(capacity)``."""
+        TL, cap = np.asarray(TL, dtype=float), np.maximum(np.asarray(capacity, dtype=float), 0.0)
+        if self.derated:
+            return np.clip(TL, -np.sqrt(cap), np.sqrt(cap))
+        return np.where(cap > 0.0, TL, 0.0)
 
     # -- sizes, bounds, names ----------------------------------------------------------------------
 
@@ -128,7 +158,8 @@ class MotorActuators(ActuationLayer):
 
     def structure_key(self) -> str:
         """What compiled code depends on: joints, limits, the states' equations."""
-        return "motors;" + ";".join(f"{u.name}:{u.limit!r}:{u.params.structure_key()}" for u in self._halves)
+        return "motors;" + ("derated;" if self.derated else "") + ";".join(
+            f"{u.name}:{u.limit!r}:{u.params.structure_key()}" for u in self._halves)
 
     # -- controls and joint torques ------------------------------------------------------------------
 

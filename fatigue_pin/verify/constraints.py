@@ -42,7 +42,8 @@ def finite_check(s: Stored) -> VerifyCheck:
 
 def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float]:
     """``TL + m_fatigued`` in [0, 1] at every node, with ``u_N := u_{N-1}`` and m_fatigued the
-    stored fatigued fraction of every half (:attr:`RunResult.fatigued`).
+    stored fatigued fraction of every half (:attr:`RunResult.fatigued`); derated motors (the
+    coupling ``derated``): ``TL^2 + x_w`` in [0, 1], each torque within ``limit sqrt(1 - x_w)``.
 
     A closed-loop run's plant delivers, at the start of every interval, at most its capacity
     ``1 - mf`` and holds that torque while mf rises, so ``u_{N-1}`` with ``mf_N`` may exceed 1 (the
@@ -59,9 +60,13 @@ def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float
             TL_nodes[-1] = halves / s.limits
         else:
             TL_nodes, mf = TL_nodes[:-1], mf[:-1]
+    coupling = str(s.run.attrs.get("coupling", "tl+mf<=1"))
+    if coupling == "derated":  # motors: |tau| <= limit sqrt(1 - x_w)
+        c = TL_nodes * TL_nodes + mf
+        value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
+        return VerifyCheck("derated torque TL^2 + x_w in [0, 1]", value, "1", tol.coupling, where), value
     c = TL_nodes + mf
     value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
-    coupling = str(s.run.attrs.get("coupling", "tl+mf<=1"))
     if coupling != "tl+mf<=1":  # not a constraint of the run: reported only
         return VerifyCheck(f"coupling TL + m_f ({coupling})", value, "1", None, where), 0.0
     return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value

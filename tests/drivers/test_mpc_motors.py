@@ -44,3 +44,18 @@ def test_a_motor_delivers_its_command_until_its_winding_reaches_the_limit():
     u = np.array([30.0, -20.0])
     assert plant.deliver(x, u).tolist() == [30.0, 0.0]
     assert np.allclose(plant.probe(x, 0), [0.5, 0.3])  # 1 - x_h: the housings
+
+
+def test_a_derated_motor_delivers_at_most_its_derated_torque():
+    """``[motors] derate = true``: a warm motor delivers at most ``limit sqrt(1 - x_w)``."""
+    from fatigue_pin.drivers.plant import Plant
+
+    problem = small_curl("full").replace({"actuators.kind": "motors", "motors": {**TOY, "derate": True}}).problem()
+    plant = Plant(problem, problem.task.dt)
+    L = problem.layout
+    x = np.zeros(L.nx)
+    x[L.nq + L.nv:] = [0.75, 0.5, 1.0, 0.7]  # shoulder warm (x_w 0.75), elbow at its limit
+    limits = problem.actuators.limits
+    u = np.array([limits[0], -0.1 * limits[1]])
+    assert np.allclose(plant.deliver(x, u), [0.5 * limits[0], 0.0])  # sqrt(1 - 0.75) = 0.5
+    assert np.allclose(plant.deliver(x, -0.3 * limits), [-0.3 * limits[0], 0.0])  # within the derated limit

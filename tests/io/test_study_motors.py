@@ -41,7 +41,7 @@ def test_the_model_names_its_stand_ins_and_a_joint_table_wins(arm26):
 def test_motor_tables_are_refused_where_they_do_not_apply(arm26):
     with pytest.raises(StudyError, match=r"\[motors\]: motors are an actuator kind; expected \[actuators\] kind = \"motors\""):
         small_curl().replace({"motors": {"preset": "maxon-re40"}})
-    with pytest.raises(StudyError, match=r"unknown key motors.inertia; expected 'preset', joints or a motor field"):
+    with pytest.raises(StudyError, match=r"unknown key motors.inertia; expected 'preset', joints, derate or a motor field"):
         motor_curl(inertia=1.0)
     with pytest.raises(StudyError, match=r"motors.preset: no motor for joint 'shoulder' of model 'arm26'"):
         small_curl().replace({"actuators.kind": "motors"}).actuators(arm26)
@@ -86,3 +86,32 @@ def test_verify_fails_a_motor_run_whose_temperature_is_moved(motor_run):
     moved.fatigue["xw"][5, 1] += 1e-3  # the elbow's winding, 0.1 % of its allowed rise
     report = verify_run(moved)
     assert not report.passed and report.gap_fatigue > 1e-4
+
+
+def test_derated_motors_keep_each_torque_within_its_datasheet_derating(tmp_path):
+    """``[motors] derate = true``: each torque within ``limit sqrt(1 - x_w)``. Checked against the
+    motor's own derating factor at the stored winding temperatures (``MotorParameters.derating``):
+    the bound holds at every interval and binds (fast motors, tau_w 0.5 s, warm within the cycle);
+    verify checks the rows and passes."""
+    from fatigue_pin.io.results import read_run
+    from fatigue_pin.io.study import run_study
+    from fatigue_pin.verify.verifier import verify_run
+
+    study = motor_curl(derate=True, tau_w=0.5, tau_m=2.0).replace({"transcription.substeps": 20})
+    layer = study.problem().actuators
+    assert layer.derated and layer.coupling_kind == "derated"
+    run_study(study, out=tmp_path / "derated.h5", name="full/derated")
+    run = read_run(tmp_path / "derated.h5", "full/derated")
+    assert run.attrs["coupling"] == "derated"
+    T_w = run.extras["winding_C"]  # at the start of every interval
+    derated = np.column_stack([u.limit * np.array([u.motor.derating(T) for T in T_w[:, k]]) for k, u in enumerate(layer.halves)])
+    ratio = np.abs(run.half_torques()) / derated
+    assert ratio.max() <= 1 + 1e-5 and ratio.max() > 0.999  # the rows hold to IPOPT's tolerance
+    report = verify_run(run)
+    checks = {c.name: c for c in report.checks}
+    assert report.passed and checks["derated torque TL^2 + x_w in [0, 1]"].value < 1e-6
+
+
+def test_derate_is_true_or_false():
+    with pytest.raises(StudyError, match=r"motors.derate = 'yes': expected true or false"):
+        motor_curl(derate="yes")
