@@ -12,7 +12,10 @@ Per OCP run (``<prefix>`` is the run name with '/' replaced by '_'):
   and extension capacity at cycle ends against the peak torque the cycle used and, if given,
   the torque that holds the posture;
 * ``<prefix>_cycle_costs``: the weighted cost terms of every cycle (log scale);
-* ``<prefix>_solve_time``: solve time per cycle (sliding horizon: per window).
+* ``<prefix>_solve_time``: solve time per cycle (sliding horizon: per window);
+* ``<prefix>_motors`` (motor runs): each winding's temperature against its limit, and each
+  joint's RMS torque per cycle (how the work is shared);
+* ``<prefix>_muscles`` (muscle runs): :func:`plot_muscles`.
 
 Per file: ``runs_comparison`` when it holds several runs, ``search_<name>`` for each max-cycles
 search table, and the forward-study figures for ``forward_studies.h5``.
@@ -21,6 +24,7 @@ search table, and the forward-study figures for ``forward_studies.h5``.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -270,15 +274,60 @@ def plot_muscles(run: RunResult, out_dir: Path) -> list[Path]:
     return _save(fig, out_dir, f"{run_prefix(run)}_muscles")
 
 
+def motor_limits(run: RunResult) -> np.ndarray:
+    """Each motor's winding limit ``T_max - margin`` (deg C), (motors,), from the run's
+    ``motors`` attribute."""
+    table = json.loads(str(run.attrs.get("motors", "{}")))
+    return np.array([table[j]["T_max"] - table[j]["margin"] for j in run.actuator_names])
+
+
+def cycle_rms_torques(run: RunResult) -> np.ndarray:
+    """Each unit's root-mean-square torque over every cycle (N m), (cycles, units)."""
+    tau = run.half_torques()
+    return np.array([np.sqrt(np.mean(tau[run.cycle_slice(c).start:run.cycle_slice(c).stop - 1] ** 2, axis=0))
+                     for c in range(run.n_cycles)])
+
+
+def plot_motors(run: RunResult, out_dir: Path) -> list[Path]:
+    """A motor run's heat: each winding's temperature over the run against its limit
+    ``T_max - margin`` (dashed), each housing's (dotted), and each joint's RMS torque per cycle
+    (N m): how the joints share the work as they warm."""
+    fig = _figure(figsize=(12, 7))
+    ax_T, ax_tau = fig.subplots(2, 1)
+    colors = matplotlib.colormaps["tab10"]
+    t = run.t[:-1]  # the temperatures are stored at the start of every interval
+    T_w, T_h, limits = run.extras["winding_C"], run.extras["housing_C"], motor_limits(run)
+    rms = cycle_rms_torques(run)
+    cycles = np.arange(1, run.n_cycles + 1)
+    for k, joint in enumerate(run.actuator_names):
+        c = colors(k % 10)
+        ax_T.plot(t, T_w[:, k], color=c, lw=1.3, label=f"{joint}: {T_w[:, k].max():.1f} / {limits[k]:.1f} C")
+        ax_T.plot(t, T_h[:, k], color=c, lw=0.8, ls=":")
+        ax_T.axhline(limits[k], color=c, lw=0.8, ls="--")
+        ax_tau.plot(cycles, rms[:, k], "o-", ms=3, color=c, label=joint)
+    ax_T.set_ylabel("winding (solid), housing (dotted) (deg C)")
+    ax_T.set_xlabel("time (s)")
+    ax_tau.set_ylabel("RMS torque in the cycle (N m)")
+    ax_tau.set_xlabel("cycle")
+    for ax in (ax_T, ax_tau):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=3)
+    fig.suptitle(_title(run), fontsize=9)
+    fig.tight_layout()
+    return _save(fig, out_dir, f"{run_prefix(run)}_motors")
+
+
 def plot_run(run: RunResult, out_dir: Path) -> list[Path]:
     """Every per-run figure of ``run`` (ResultFileError for a run without a cycle); a muscle run
-    adds :func:`plot_muscles`."""
+    adds :func:`plot_muscles`, a motor run :func:`plot_motors`."""
     run.require_cycles("plot")
     paths: list[Path] = []
     for plot in (plot_joint_angles, plot_fatigue_states, plot_torque_limits, plot_cycle_costs, plot_solve_time):
         paths += plot(run, out_dir)
     if run.muscle_names:
         paths += plot_muscles(run, out_dir)
+    if run.actuation == "motors" and "winding_C" in run.extras:
+        paths += plot_motors(run, out_dir)
     return paths
 
 

@@ -173,3 +173,31 @@ def test_a_muscle_run_gets_its_muscles_figure(two_muscle_run, monkeypatch, tmp_p
     # the muscles' share of the elbow torque, and the residual at the elbow
     elbow_muscles = run.extras["joint_torque"][:, 1] - (run.tau_plus + run.tau_minus)[:, 1]
     assert np.allclose(lines["joint torque (N m)"][2], elbow_muscles)
+
+
+def test_a_motor_run_gets_its_heat_figure(monkeypatch, tmp_path: Path) -> None:
+    """A motor run's figure draws each winding's stored temperature, its limit T_max - margin and
+    each joint's RMS torque per cycle, computed here again from the stored torques."""
+    from conftest import small_curl
+    from fatigue_pin.io.study import run_study
+
+    study = small_curl("full").replace({"actuators.kind": "motors", "horizon.cycles": 2,
+                                        "motors": {"preset": "maxon-re40", "gear_ratio": 20.0, "T_max": 120.0}})
+    run_study(study, out=tmp_path / "m.h5", name="full/motors")
+    run = read_run(tmp_path / "m.h5", "full/motors")
+    drawn = {}
+    original = plots._save
+
+    def keep(fig, out_dir, stem):
+        if stem.endswith("_motors"):
+            drawn["lines"] = {ax.get_ylabel(): [ln.get_ydata() for ln in ax.lines] for ax in fig.axes}
+        return original(fig, out_dir, stem)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    paths = plots.plot_run(run, tmp_path / "fig")
+    _check([p for p in paths if "_motors" in p.name])
+    heat, torque = drawn["lines"]["winding (solid), housing (dotted) (deg C)"], drawn["lines"]["RMS torque in the cycle (N m)"]
+    assert np.array_equal(heat[0], run.extras["winding_C"][:, 0]) and np.allclose(heat[2], 120.0 - 10.0)  # the default margin
+    tau, n = run.half_torques(), 10
+    rms = [np.sqrt(np.mean(tau[c * n:(c + 1) * n, 1] ** 2)) for c in range(2)]
+    assert np.allclose(torque[1], rms)  # the elbow's
