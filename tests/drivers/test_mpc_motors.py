@@ -19,7 +19,8 @@ def test_a_motor_closed_loop_estimates_the_hotter_plant_from_its_housings(tmp_pa
     motor's housing cooling rate c = 1 / tau_m (tau_m is a product with R_ha), one-cycle windows
     re-planned every cycle."""
     study = small_curl("sliding", cycles=1, max_cycles=2).replace({"actuators.kind": "motors", "motors": TOY})
-    run = mhe_closed_loop(tmp_path, study, "[plant.motors]\nR_ha = 9.3", ["q_h", "b", "c"])
+    # the housing probes are noisy: 0.005 of the allowed rise (0.3 K; seeded)
+    run = mhe_closed_loop(tmp_path, study, "[plant.motors]\nR_ha = 9.3\n\n[plant.noise]\ncapacity = 0.005", ["q_h", "b", "c"])
     assert run.actuation == "motors" and run.n_cycles == 2
     # the plant ran hotter than the plan: its housings' rise is larger than the prediction's
     xh, pred = run.fatigue["xh"], run.extras["prediction"]
@@ -29,6 +30,10 @@ def test_a_motor_closed_loop_estimates_the_hotter_plant_from_its_housings(tmp_pa
     est, xw = run.extras["estimate"], run.fatigue["xw"]
     assert np.abs(est[10, 0::2] - xw[10]).max() < 0.5 * np.abs(pred[10, ny::2] - xw[10]).max()
     assert run.extras["flow_gap"].max() < 1e-5  # the plant's intervals on the exact flow
+    # the probes read each housing with its noise: 1 - x_h off the plant's by about 0.005
+    probes, nodes = run.extras["probes"], run.extras["probe_nodes"].astype(int)
+    off = probes - (1 - xh[nodes])
+    assert 1e-4 < np.abs(off).max() < 0.03
 
 
 def test_a_motor_delivers_its_command_until_its_winding_reaches_the_limit():
