@@ -176,7 +176,7 @@ def test_the_ur5_studies_are_verified_on_their_shipped_grid(solved):
     their RK4 steps are short enough for verify's default gap tolerances (verify itself passes
     them, the fatigue gap included, in test_verify_passes_on_a_short_result_of_every_study: not
     repeated here)."""
-    assert {name for name, _ in UR5} == {"ur5_carry.toml", "ur5_lift_swing.toml", "ur5_mpc.toml", "ur5_motors_lift.toml"}
+    assert {name for name, _ in UR5} == {"ur5_carry.toml", "ur5_lift_swing.toml", "ur5_mpc.toml", "ur5_motors_lift.toml", "ur5_motors_paced.toml"}
     for source in UR5:
         study = _study(source)
         shipped = (study.data["task"]["intervals_per_cycle"], study.data["transcription"]["substeps"])
