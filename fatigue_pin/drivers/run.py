@@ -13,7 +13,6 @@ HDF5 one), so the drivers do not depend on the file format.
 from __future__ import annotations
 
 import json
-import re
 import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path

@@ -413,7 +413,7 @@ class SlidingHorizon:
             The stitched :class:`RunResult` (also in ``store``).
         """
         name = name or "sliding/run"
-        ocp, n, A, K = self.ocp, self._n, self.sliding.advance, self.sliding.window
+        ocp, n, A = self.ocp, self._n, self.sliding.advance
         work = self._working_name(store, name, resume)
         state = self._restore(store, work) if (resume and store is not None) else None
         rep = as_reporter(progress)

@@ -35,7 +35,7 @@ from scipy.optimize import least_squares
 from scipy.stats import t as student_t
 
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
-from fatigue_pin.core.errors import CalibrationDataError, ParameterError
+from fatigue_pin.core.errors import CalibrationDataError
 from fatigue_pin.core.files import atomic_write_bytes, check_output_file, csv_number, read_csv_table
 from fatigue_pin.core.settings import check_fields, default_of, is_number, replaced, setting
 from fatigue_pin.fatigue.models import XiaFatigue

@@ -271,7 +271,6 @@ class PolynomialPaths:
         lo, hi = self.lower[joints], self.upper[joints]
         center, half = tuple(float(c) for c in (lo + hi) / 2), tuple(float(h) for h in (hi - lo) / 2)
         per = min(_PER_COORDINATE, max(3, int(round(_SAMPLES ** (1.0 / d)))))
-        nq = self.model.nq
         fit_q, check_q = (self._poses(_grid(lo, hi, per, between), joints) for between in (False, True))
         L_fit, G_fit = self._exact(fit_q, i, joints)
         L_chk, G_chk = self._exact(check_q, i, joints)

@@ -296,7 +296,7 @@ class Ocp:
         U_lb, U_ub = params.add("U_lb", nu, N), params.add("U_ub", nu, N)
         self.params = params
 
-        ny, nv = layout.nq + layout.nv, layout.nv
+        ny = layout.nq + layout.nv
         par = self._map_args
         #: the mapped interval functions (for the derivative blocks, :mod:`fatigue_pin.ocp.blocks`)
         self._mapped: list[MappedCall] = []

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from fatigue_pin.paper.forward_file import is_forward_file, plot_forward_file, read_forward_studies
