@@ -153,18 +153,25 @@ def test_a_prismatic_joint_is_plotted_in_metres(monkeypatch, tmp_path: Path) -> 
     np.testing.assert_array_equal(comparison.get_lines()[0].get_ydata(), run.q[run.cycle_slice(2), 0])
 
 
-def test_a_muscle_run_gets_its_muscles_figure(two_muscle_run, monkeypatch, tmp_path: Path) -> None:
-    """Each muscle's fatigued fraction, its force and the joint torques it gives are what the run stores."""
-    _, _, run = two_muscle_run
-    drawn = {}
+def _drawn_lines(monkeypatch, suffix: str) -> dict:
+    """``{"lines": {y label: [each line's y data]}}`` of the figure saved with a stem ending in
+    ``suffix``, once it is saved."""
+    drawn: dict = {}
     original = plots._save
 
     def keep(fig, out_dir, stem):
-        if stem.endswith("_muscles"):
+        if stem.endswith(suffix):
             drawn["lines"] = {ax.get_ylabel(): [ln.get_ydata() for ln in ax.lines] for ax in fig.axes}
         return original(fig, out_dir, stem)
 
     monkeypatch.setattr(plots, "_save", keep)
+    return drawn
+
+
+def test_a_muscle_run_gets_its_muscles_figure(two_muscle_run, monkeypatch, tmp_path: Path) -> None:
+    """Each muscle's fatigued fraction, its force and the joint torques it gives are what the run stores."""
+    _, _, run = two_muscle_run
+    drawn = _drawn_lines(monkeypatch, "_muscles")
     paths = plots.plot_run(run, tmp_path)
     assert any(p.name.endswith("_muscles.png") for p in paths)
     lines = drawn["lines"]
@@ -185,15 +192,7 @@ def test_a_motor_run_gets_its_heat_figure(monkeypatch, tmp_path: Path) -> None:
                                         "motors": {"preset": "maxon-re40", "gear_ratio": 20.0, "T_max": 120.0}})
     run_study(study, out=tmp_path / "m.h5", name="full/motors")
     run = read_run(tmp_path / "m.h5", "full/motors")
-    drawn = {}
-    original = plots._save
-
-    def keep(fig, out_dir, stem):
-        if stem.endswith("_motors"):
-            drawn["lines"] = {ax.get_ylabel(): [ln.get_ydata() for ln in ax.lines] for ax in fig.axes}
-        return original(fig, out_dir, stem)
-
-    monkeypatch.setattr(plots, "_save", keep)
+    drawn = _drawn_lines(monkeypatch, "_motors")
     paths = plots.plot_run(run, tmp_path / "fig")
     _check([p for p in paths if "_motors" in p.name])
     heat, torque = drawn["lines"]["winding (solid), housing (dotted) (deg C)"], drawn["lines"]["RMS torque in the cycle (N m)"]
