@@ -227,14 +227,15 @@ class SlidingHorizon:
 
     def fingerprint(self) -> str:
         """What a resumed run must share with the stored one: weights, fatigue parameters, task,
-        window settings (not ``max_cycles``), transcription and the initial state."""
+        window settings (not ``max_cycles``, unless a heat budget spreads over it), transcription
+        and the initial state."""
         s = self.sliding
         data = {
             "weights": dict(zip(self.ocp.cost_terms, self.problem.weights.tolist())),
             "fatigue": {h.name: [h.params.kind, *h.params.as_vector().tolist()] for h in self.problem.actuators.halves},
             "task": repr(self.problem.task),
             "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue,
-                       *(["heat_budget"] if s.heat_budget else [])],
+                       *(["heat_budget", s.max_cycles] if s.heat_budget else [])],  # its budget depends on max_cycles
             "transcription": repr(self.ocp.transcription),
             "x_init": self.problem.initial_state().tolist(),
             "model": [self.model.name, repr(self.model.payload)],
