@@ -51,6 +51,20 @@ def test_windows_within_the_heat_budget_leave_the_remaining_cycles_their_heat():
     assert budget.fatigue["xw"].max() <= 1 + 1e-6 and plain.fatigue["xw"].max() <= 1 + 1e-6
 
 
+def test_a_heat_budget_run_stopped_after_two_windows_resumes_to_the_same_run(tmp_path):
+    """The budget of a window depends on the kept cycle before it, read back from the file."""
+    from fatigue_pin.io.results import ResultFile
+
+    runner, reference, _ = _run(True)
+    out = tmp_path / "budget.h5"
+    runner.run(ResultFile(out), stop_after=2)
+    resumed = runner.run(ResultFile(out), resume=True)
+    assert resumed.n_cycles == reference.n_cycles
+    for name in ("q", "qdot", "tau_plus", "tau_minus"):
+        assert np.allclose(getattr(resumed, name), getattr(reference, name), atol=1e-9), name
+    assert np.allclose(resumed.fatigue["xw"], reference.fatigue["xw"], atol=1e-9)
+
+
 def _motor_study(**changes):
     return small_curl("sliding", cycles=2, max_cycles=MAX_CYCLES).replace(
         {"actuators.kind": "motors", "motors": TOY, "horizon.heat_budget": True, **changes})
