@@ -48,6 +48,7 @@ from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
 from fatigue_pin.ocp.transcription import Ocp, Transcription
+from fatigue_pin.ocp.window_budget import WindowBudget, window_budget
 
 #: How far (rad) the plant's q may be outside the model's joint range before the run ends.
 BOUND_TOLERANCE = 1e-6
@@ -247,9 +248,9 @@ class ClosedLoop:
         if not isinstance(sliding, SlidingSettings):
             raise ParameterError(f"ClosedLoop: sliding = {sliding!r}: expected SlidingSettings (the controller's window is "
                                  "required, e.g. SlidingSettings(window=3))")
-        if sliding.heat_budget:
-            raise ParameterError("horizon.heat_budget = true: the closed loop re-plans without a heat budget; expected false "
-                                 "(a budget for sliding runs, fatigue-pin run)")
+        if sliding.heat_budget and not problem.actuators.has_window_budget:
+            raise ParameterError(f"horizon.heat_budget = true: expected motors (actuators.kind = \"motors\"); the actuators "
+                                 f"are {problem.actuators.kind!r}, which have no heat")
         self.sliding = sliding
         self.mpc = mpc or MpcSettings()
         self.plant_settings = plant or PlantSettings()
@@ -287,7 +288,8 @@ class ClosedLoop:
             functions = self._ocps[0].functions if self._ocps else None
             # node 0 is the measured state even where the shifted task puts a target there (Ocp.state_bounds)
             self._ocps[phase] = Ocp(phase_shifted(self.problem, phase), self.sliding.window, self.transcription,
-                                    self.solver, self.sliding.end_tolerance, self.guess, functions, self.progress)
+                                    self.solver, self.sliding.end_tolerance, self.guess, functions, self.progress,
+                                    window_budget=self.sliding.heat_budget)
         return self._ocps[phase]
 
     def new_estimator(self):
@@ -359,8 +361,14 @@ class ClosedLoop:
             status, success, iterations, wall, objective = "Plant_Outside_Bounds", False, 0, 0.0, math.nan
         else:
             warm = self._warm_start(state, k) if self.sliding.warm_start else None
+            budget = self.window_budget(state, k)
             sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params, warm=warm,
-                            warm_start=warm is not None)
+                            warm_start=warm is not None, budget=budget)
+            if budget is not None and not sol.success:  # failed within its heat budget: again without it
+                again = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params, warm=warm,
+                                  warm_start=warm is not None)
+                sol = dataclasses.replace(again, iterations=sol.iterations + again.iterations,
+                                          wall_time_s=sol.wall_time_s + again.wall_time_s)
             status, success, iterations, wall, objective = sol.status, sol.success, sol.iterations, sol.wall_time_s, sol.objective
         horizon_s = self.replan_every * self.problem.task.dt
         state.replans.append((len(state.replans), k, k % self.n, status.encode()[:40], success, iterations,
@@ -375,6 +383,17 @@ class ClosedLoop:
         if max_cycles is not None and self.mpc.end == "run-out" and k + self.H >= max_cycles * self.n:
             state.done = True
         return sol
+
+    def window_budget(self, state: LoopState, node: int) -> WindowBudget | None:
+        """Under ``heat_budget``, the budget of the window starting at ``node``
+        (:func:`~fatigue_pin.ocp.window_budget.window_budget`), the cycles before it from the
+        estimated states; None without it."""
+        if not self.sliding.heat_budget:
+            return None
+        n, ns = self.n, self.problem.layout.n_fatigue
+        past = np.array([state.history.m[j] if j >= 0 else np.zeros(ns) for j in range(node - n + 1, node)]).reshape(n - 1, ns)
+        return window_budget(self.problem.actuators, n, self.problem.task.cycle_duration, node, self.H,
+                             int(self.sliding.max_cycles) * n, past)
 
     def _warm_start(self, state: LoopState, node: int) -> Any:
         """The last converged plan's multipliers (and primal) moved to the window starting at

@@ -40,6 +40,7 @@ from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import Task
 from fatigue_pin.ocp.transcription import OcpSolution, Transcription
+from fatigue_pin.ocp import window_budget as budgets
 from fatigue_pin.ocp.window_budget import WindowBudget
 
 
@@ -275,15 +276,12 @@ class SlidingHorizon:
         if not self.sliding.heat_budget:
             return None
         n, K, L = self._n, self.sliding.window, self.ocp.layout
-        start, task_end = first_cycle * n, int(self.sliding.max_cycles) * n
-        budget = self.problem.actuators.window_budget
-        none = tuple(np.zeros((self.problem.actuators.n_window_budget, L.n_fatigue)) for _ in range(2))
-        rows = [budget(self.ocp.task.cycle_duration, max((task_end - start - i) // n, 0)) if start + i >= n else none
-                for i in range(1, K * n + 1)]
+        start = first_cycle * n
         past = np.zeros((n - 1, L.n_fatigue))
         if state is not None and start >= n:
             past = state.x[start - n + 1: start, L.m]
-        return WindowBudget(rows, past)
+        return budgets.window_budget(self.problem.actuators, n, self.ocp.task.cycle_duration, start, K * n,
+                                     int(self.sliding.max_cycles) * n, past)
 
     def _solve_window(self, x_init: np.ndarray, guess: tuple, limit: int | None, warm: Any,
                       budget: WindowBudget | None) -> tuple[OcpSolution, bool]:

@@ -22,7 +22,7 @@ import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
 
-__all__ = ["WindowBudget", "add_budget_rows", "budget_values"]
+__all__ = ["WindowBudget", "add_budget_rows", "budget_values", "window_budget"]
 
 
 @dataclass(frozen=True)
@@ -66,3 +66,24 @@ def budget_values(budget: WindowBudget | None, n: int, N: int, nb: int, ns: int)
     for b in range(nb):
         values[f"budget_last_{b}"], values[f"budget_before_{b}"] = last[b], before[b]
     return values
+
+
+def window_budget(actuators, n: int, cycle_s: float, start: int, nodes: int, task_end: int,
+                  past: np.ndarray) -> WindowBudget:
+    """The budget of a window of ``nodes`` intervals whose first node is node ``start`` of the
+    run, in a task that ends at node ``task_end`` (``max_cycles`` whole cycles of ``n``
+    intervals): the layer's rows
+    (:meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.window_budget`) of the cycle ending at
+    each node ``start + i`` (i = 1..nodes), for the whole cycles from it to ``task_end``; none for
+    a cycle that would start before the run.
+
+    Args:
+        actuators: the actuation layer (with ``has_window_budget``).
+        past: the capacity states (n - 1, n_fatigue) of the nodes ``start - n + 1 .. start - 1``
+            (rows of nodes before the run are not read).
+    """
+    nb, ns = actuators.n_window_budget, actuators.n_states
+    none = (np.zeros((nb, ns)), np.zeros((nb, ns)))
+    rows = [actuators.window_budget(cycle_s, max((task_end - start - i) // n, 0)) if start + i >= n else none
+            for i in range(1, nodes + 1)]
+    return WindowBudget(rows, np.asarray(past, dtype=float).reshape(max(n - 1, 0), ns))

@@ -81,3 +81,27 @@ def test_a_heat_budget_needs_motors_sliding_windows_and_the_task_length(make, me
         study = make()
         h = study.horizon_settings()
         SlidingHorizon(study.problem(), h.sliding_settings(), study.transcription(), study.solver())
+
+
+def test_a_closed_loop_whose_plant_is_its_model_reproduces_the_heat_budget_run():
+    """No [plant], no noise, a re-plan every cycle, the plant on the plan's own RK4: the closed
+    loop within the heat budget (its past cycle from the estimate) is the sliding run within it."""
+    from fatigue_pin.drivers.mpc import ClosedLoop, MpcSettings
+    from fatigue_pin.drivers.plant import PlantSettings
+
+    study = small_curl("sliding", cycles=2, max_cycles=MAX_CYCLES, solver={"compile": False, "tol": 1e-10, "constr_viol_tol": 1e-10})
+    study = study.replace({"actuators.kind": "motors", "motors": TOY, "horizon.heat_budget": True})
+    h = study.horizon_settings()
+    reference = SlidingHorizon(study.problem(), h.sliding_settings(), study.transcription(), study.solver()).run()
+    loop = ClosedLoop(study.problem(), None, h.sliding_settings(), MpcSettings(), PlantSettings(integrator="rk4"),
+                      study.transcription(), study.solver())
+    state = loop.run()
+    L = loop.problem.layout
+    x = np.array(state.x)
+    x_ref = L.assemble(reference.q, reference.qdot, reference.fatigue)
+    # the plan takes the shoulder's winding to its limit in the last cycle; there the plant's motor
+    # trips (x_w = 1 to rounding: it delivers nothing) and the loop ends, four nodes early
+    at_limit = int(np.argmax(x_ref[:, L.m].max(axis=1) > 1 - 1e-6))
+    assert at_limit > 4 * loop.n and x.shape[0] > at_limit
+    assert np.abs(x[: at_limit + 1] - x_ref[: at_limit + 1]).max() < 1e-6
+    assert all(r[4] for r in state.replans) and len(state.replans) == MAX_CYCLES - 1  # each converged within its budget
