@@ -21,6 +21,8 @@ import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
+from fatigue_pin.ocp.actuation_layer import ActuationLayer
+from fatigue_pin.ocp.solution import ParameterLayout
 
 __all__ = ["WindowBudget", "add_budget_rows", "budget_values", "window_budget"]
 
@@ -41,7 +43,7 @@ class WindowBudget:
     past: np.ndarray
 
 
-def add_budget_rows(opti: ca.Opti, params, M: ca.MX, n: int, nb: int) -> None:
+def add_budget_rows(opti: ca.Opti, params: ParameterLayout, M: ca.MX, n: int, nb: int) -> None:
     """The budget's rows on the capacity states ``M`` (n_fatigue, N+1) of an NLP of ``n``
     intervals per cycle, ``nb`` rows per node, their coefficients parameters of ``params``
     (a :class:`~fatigue_pin.ocp.solution.ParameterLayout`)."""
@@ -68,7 +70,7 @@ def budget_values(budget: WindowBudget | None, n: int, N: int, nb: int, ns: int)
     return values
 
 
-def window_budget(actuators, n: int, cycle_s: float, start: int, nodes: int, task_end: int,
+def window_budget(actuators: ActuationLayer, n: int, cycle_s: float, start: int, nodes: int, task_end: int,
                   past: np.ndarray) -> WindowBudget:
     """The budget of a window of ``nodes`` intervals whose first node is node ``start`` of the
     run, in a task that ends at node ``task_end`` (``max_cycles`` whole cycles of ``n``
