@@ -48,7 +48,7 @@ from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
 from fatigue_pin.ocp.transcription import Ocp, Transcription
-from fatigue_pin.ocp.window_budget import WindowBudget, window_budget
+from fatigue_pin.ocp.window_budget import WindowBudget, require_window_budget, solve_within, window_budget
 
 #: How far (rad) the plant's q may be outside the model's joint range before the run ends.
 BOUND_TOLERANCE = 1e-6
@@ -248,9 +248,8 @@ class ClosedLoop:
         if not isinstance(sliding, SlidingSettings):
             raise ParameterError(f"ClosedLoop: sliding = {sliding!r}: expected SlidingSettings (the controller's window is "
                                  "required, e.g. SlidingSettings(window=3))")
-        if sliding.heat_budget and not problem.actuators.has_window_budget:
-            raise ParameterError(f"horizon.heat_budget = true: expected motors (actuators.kind = \"motors\"); the actuators "
-                                 f"are {problem.actuators.kind!r}, which have no heat")
+        if sliding.heat_budget:
+            require_window_budget(problem.actuators)
         self.sliding = sliding
         self.mpc = mpc or MpcSettings()
         self.plant_settings = plant or PlantSettings()
@@ -361,14 +360,8 @@ class ClosedLoop:
             status, success, iterations, wall, objective = "Plant_Outside_Bounds", False, 0, 0.0, math.nan
         else:
             warm = self._warm_start(state, k) if self.sliding.warm_start else None
-            budget = self.window_budget(state, k)
-            sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params, warm=warm,
-                            warm_start=warm is not None, budget=budget)
-            if budget is not None and not sol.success:  # failed within its heat budget: again without it
-                again = ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=limit, fatigue=estimator.params, warm=warm,
-                                  warm_start=warm is not None)
-                sol = dataclasses.replace(again, iterations=sol.iterations + again.iterations,
-                                          wall_time_s=sol.wall_time_s + again.wall_time_s)
+            sol, _ = solve_within(ocp, self.window_budget(state, k), x_init=x_init, guess=guess, x_end=x_end, max_iter=limit,
+                                  fatigue=estimator.params, warm=warm, warm_start=warm is not None)
             status, success, iterations, wall, objective = sol.status, sol.success, sol.iterations, sol.wall_time_s, sol.objective
         horizon_s = self.replan_every * self.problem.task.dt
         state.replans.append((len(state.replans), k, k % self.n, status.encode()[:40], success, iterations,

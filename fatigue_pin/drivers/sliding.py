@@ -21,7 +21,6 @@ run (the guess of a window only depends on the previous window's stored solution
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from dataclasses import dataclass
 from typing import Any, Sequence
@@ -216,9 +215,8 @@ class SlidingHorizon:
         self.solver = solver or SolverOptions()
         # a cyclic task's windows end in a box around their start state; a non-cyclic task's windows end
         # at the targets of their phases' ends (no box)
-        if self.sliding.heat_budget and not problem.actuators.has_window_budget:
-            raise ParameterError(f"horizon.heat_budget = true: expected motors (actuators.kind = \"motors\"); the actuators "
-                                 f"are {problem.actuators.kind!r}, which have no heat")
+        if self.sliding.heat_budget:
+            budgets.require_window_budget(problem.actuators)
         end_box = self.sliding.end_tolerance if problem.task.cyclic else None
         self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box,
                                                                                     window_budget=self.sliding.heat_budget)
@@ -282,20 +280,6 @@ class SlidingHorizon:
             past = state.x[start - n + 1: start, L.m]
         return budgets.window_budget(self.problem.actuators, n, self.ocp.task.cycle_duration, start, K * n,
                                      int(self.sliding.max_cycles) * n, past)
-
-    def _solve_window(self, x_init: np.ndarray, guess: tuple, limit: int | None, warm: Any,
-                      budget: WindowBudget | None) -> tuple[OcpSolution, bool]:
-        """A window's solve within its ``budget``; one that fails there is solved again without
-        it, from the same guess (its iterations and time count both solves). Returns the solution
-        and whether the budget held."""
-        ocp = self.ocp
-        sol = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None,
-                        budget=budget)
-        if budget is None or sol.success:
-            return sol, budget is not None
-        again = ocp.solve(x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm, warm_start=warm is not None)
-        return dataclasses.replace(again, iterations=sol.iterations + again.iterations,
-                                   wall_time_s=sol.wall_time_s + again.wall_time_s), False
 
     def _iteration_limit(self, state: _State) -> int | None:
         return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)
@@ -431,7 +415,8 @@ class SlidingHorizon:
                 if warm is not None:
                     guess = ocp.unflatten(warm.x)
                 budget = self.window_budget(first_cycle, state)
-                sol, within = self._solve_window(x_init, guess, limit, warm, budget)
+                sol, within = budgets.solve_within(ocp, budget, x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm,
+                                                   warm_start=warm is not None)
                 last = sol.nlp if sol.success else None
                 solved += 1
                 index = len(state.windows) if state is not None else 0

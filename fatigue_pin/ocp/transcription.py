@@ -54,7 +54,7 @@ from fatigue_pin.core.progress import Progress
 from fatigue_pin.ocp.solution import OcpSolution, ParameterLayout
 from fatigue_pin.ocp.solver import NLPSOL_OPTIONS, NlpResult, NlpSolver, SolverOptions, simple_bounds
 from fatigue_pin.ocp.task import check_horizon, joint_target_pairs
-from fatigue_pin.ocp.window_budget import WindowBudget, add_budget_rows, budget_values
+from fatigue_pin.ocp.window_budget import WindowBudget, add_budget_rows, budget_values, require_window_budget
 from fatigue_pin.core.text import shown
 
 #: Integrators of the shooting intervals.
@@ -157,9 +157,8 @@ class Ocp:
         self.solver_options = solver or SolverOptions()
         self.end_tolerance = end_tolerance
         self.guess = guess
-        if window_budget and not self.actuators.has_window_budget:
-            raise ParameterError(f"window_budget = true: the {self.actuators.kind!r} actuators have no window budget; "
-                                 "expected motors (the heat budget)")
+        if window_budget:
+            require_window_budget(self.actuators)
         self.window_budget = bool(window_budget)
         self.actuators.check_stabiliser(self.task.dt / self.transcription.substeps, self.transcription.integrator)
         self.n_intervals = N = self.n_cycles * self.task.intervals_per_cycle

@@ -15,16 +15,28 @@ they are parameters of every solve (zero coefficients: no bound).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
 
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.ocp.actuation_layer import ActuationLayer
-from fatigue_pin.ocp.solution import ParameterLayout
+from fatigue_pin.ocp.solution import OcpSolution, ParameterLayout
 
-__all__ = ["WindowBudget", "add_budget_rows", "budget_values", "window_budget"]
+if TYPE_CHECKING:
+    from fatigue_pin.ocp.transcription import Ocp
+
+__all__ = ["WindowBudget", "add_budget_rows", "budget_values", "require_window_budget", "solve_within", "window_budget"]
+
+
+def require_window_budget(actuators: ActuationLayer) -> None:
+    """Refuse (one line) a heat budget for actuators without a window budget
+    (:attr:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.has_window_budget`)."""
+    if not actuators.has_window_budget:
+        raise ParameterError(f"horizon.heat_budget = true: expected motors (actuators.kind = \"motors\"); the actuators "
+                             f"are {actuators.kind!r}, which have no heat")
 
 
 @dataclass(frozen=True)
@@ -86,6 +98,22 @@ def window_budget(actuators: ActuationLayer, n: int, cycle_s: float, start: int,
     """
     nb, ns = actuators.n_window_budget, actuators.n_states
     none = (np.zeros((nb, ns)), np.zeros((nb, ns)))
-    rows = [actuators.window_budget(cycle_s, max((task_end - start - i) // n, 0)) if start + i >= n else none
-            for i in range(1, nodes + 1)]
+    by_cycles: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # the rows depend on the cycles left only
+    rows = []
+    for i in range(1, nodes + 1):
+        after = max((task_end - start - i) // n, 0)
+        if start + i >= n and after not in by_cycles:
+            by_cycles[after] = actuators.window_budget(cycle_s, after)
+        rows.append(by_cycles[after] if start + i >= n else none)
     return WindowBudget(rows, np.asarray(past, dtype=float).reshape(max(n - 1, 0), ns))
+
+
+def solve_within(ocp: "Ocp", budget: WindowBudget | None, **solve: Any) -> tuple[OcpSolution, bool]:
+    """``ocp.solve(**solve)`` within ``budget``; a solve that fails there is done again without
+    it, from the same guess and warm start, its iterations and time counting both solves.
+    Returns the solution and whether it kept the budget (False without one)."""
+    sol = ocp.solve(**solve, budget=budget)
+    if budget is None or sol.success:
+        return sol, budget is not None
+    again = ocp.solve(**solve)
+    return replace(again, iterations=sol.iterations + again.iterations, wall_time_s=sol.wall_time_s + again.wall_time_s), False

@@ -61,12 +61,11 @@ def coupling_check(s: Stored, tol: VerifyTolerances) -> tuple[VerifyCheck, float
         else:
             TL_nodes, mf = TL_nodes[:-1], mf[:-1]
     coupling = str(s.run.attrs.get("coupling", "tl+mf<=1"))
-    if coupling == "derated":  # motors: |tau| <= limit sqrt(1 - x_w)
-        c = TL_nodes * TL_nodes + mf
-        value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
-        return VerifyCheck("derated torque TL^2 + x_w in [0, 1]", value, "1", tol.coupling, where), value
-    c = TL_nodes + mf
+    derated = coupling == "derated"  # motors: |tau| <= limit sqrt(1 - x_w)
+    c = (TL_nodes * TL_nodes if derated else TL_nodes) + mf
     value, where = worst(np.maximum(-c, c - 1.0), [h.name for h in s.halves], "node")
+    if derated:
+        return VerifyCheck("derated torque TL^2 + x_w in [0, 1]", value, "1", tol.coupling, where), value
     if coupling != "tl+mf<=1":  # not a constraint of the run: reported only
         return VerifyCheck(f"coupling TL + m_f ({coupling})", value, "1", None, where), 0.0
     return VerifyCheck("coupling TL + m_fatigued in [0, 1]", value, "1", tol.coupling, where), value

@@ -284,8 +284,8 @@ def motor_limits(run: RunResult) -> np.ndarray:
 def cycle_rms_torques(run: RunResult) -> np.ndarray:
     """Each unit's root-mean-square torque over every cycle (N m), (cycles, units)."""
     tau = run.half_torques()
-    return np.array([np.sqrt(np.mean(tau[run.cycle_slice(c).start:run.cycle_slice(c).stop - 1] ** 2, axis=0))
-                     for c in range(run.n_cycles)])
+    intervals = [slice(s.start, s.stop - 1) for s in map(run.cycle_slice, range(run.n_cycles))]  # nodes -> intervals
+    return np.array([np.sqrt(np.mean(tau[i] ** 2, axis=0)) for i in intervals])
 
 
 def plot_motors(run: RunResult, out_dir: Path) -> list[Path]:
