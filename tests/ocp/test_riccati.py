@@ -96,21 +96,26 @@ def ma27(lib, rows, cols, values, n, rhs):
     return flag, negative, x
 
 
-def random_kkt(rng, stages=12, nx=4, nu=2, hessian_scale=1.0):
+def random_kkt(rng, stages=12, nx=4, nu=2, hessian_scale=1.0, group=0):
     """A random augmented system [H, J^T; J, -d I] of a stage-wise OCP (dynamics rows
-    x_{k+1} - A x_k - B u_k), indefinite H blocks, in the NLP's order (primal, then rows)."""
+    x_{k+1} - A x_k - B u_k), indefinite H blocks, in the NLP's order (primal, then rows).
+    ``group`` > 0: the states in independent groups of that size (A and the states' Hessian block
+    diagonal, each group driven by one control), like the fatigue states of separate actuators."""
     nw = stages * (nx + nu) + nx
     m = stages * nx
     K = np.zeros((nw + m, nw + m))
+    mask_x = np.kron(np.eye(nx // group), np.ones((group, group))) if group else np.ones((nx, nx))
+    mask_u = np.kron(np.eye(nx // group), np.ones((group, 1)))[:, :nu] if group else np.ones((nx, nu))
     for k in range(stages + 1):
         s = k * (nx + nu)
         size = nx + nu if k < stages else nx
         Q = rng.normal(size=(size, size)) * hessian_scale
+        Q[:nx, :nx] *= mask_x
         K[s:s + size, s:s + size] = Q + Q.T
     for k in range(stages):
         s, r = k * (nx + nu), nw + k * nx
-        K[r:r + nx, s:s + nx] = -rng.normal(size=(nx, nx))
-        K[r:r + nx, s + nx:s + nx + nu] = -rng.normal(size=(nx, nu))
+        K[r:r + nx, s:s + nx] = -rng.normal(size=(nx, nx)) * mask_x
+        K[r:r + nx, s + nx:s + nx + nu] = -rng.normal(size=(nx, nu)) * mask_u
         K[r:r + nx, s + nx + nu:s + 2 * nx + nu] = np.eye(nx)
     K = np.tril(K)
     K[nw:, nw:] -= np.eye(m) * rng.choice([0.0, 1e-8])
@@ -118,11 +123,16 @@ def random_kkt(rng, stages=12, nx=4, nu=2, hessian_scale=1.0):
     return K
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(10))
 def test_inertia_is_the_eigenvalue_count(seed):
+    """Seeds 6-9: stages of independent state groups, whose pivot columns are mostly zero: their
+    updates take the sparse path (index lists), the others the dense one."""
     lib = ctypes.CDLL(str(riccati_library()))
     rng = np.random.default_rng(seed)
-    K = random_kkt(rng, hessian_scale=[0.1, 1.0, 10.0][seed % 3])
+    if seed < 6:
+        K = random_kkt(rng, hessian_scale=[0.1, 1.0, 10.0][seed % 3])
+    else:
+        K = random_kkt(rng, stages=8, nx=12, nu=4, hessian_scale=[0.1, 1.0][seed % 2], group=3)
     rows, cols = np.nonzero(np.tril(K))
     rows, cols = np.concatenate([rows, np.arange(len(K))]), np.concatenate([cols, np.arange(len(K))])
     values = np.concatenate([K[np.nonzero(np.tril(K))], np.zeros(len(K))])  # duplicates are summed
