@@ -426,7 +426,7 @@ def fatigue_parameters(halves) -> str:
 def run_attributes(ocp: Ocp, horizon: str, labels: dict[str, Any] | None = None) -> dict[str, object]:
     """Attributes describing a run of ``ocp``: horizon, sizes, weights and fatigue parameters by
     name (JSON), solver, model, and the study's ``labels`` (e.g. cost, S, preset)."""
-    s = ocp.solver_options
+    s = ocp.nlp.options  # the solver's options, its linear solver as chosen ("auto" resolved)
     attrs: dict[str, object] = {
         "horizon": horizon,
         "n_cycles": ocp.n_cycles,

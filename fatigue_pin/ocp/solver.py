@@ -108,6 +108,9 @@ class SolverOptions:
             of IPOPT's augmented system (:func:`riccati_library`), loaded by IPOPT in place of
             HSL's MA27, so IPOPT's algorithm and iterates stay; a problem whose stages it cannot
             take falls back to ``mumps`` with one line saying why (:func:`riccati_structure`).
+            ``auto`` (the default): ``riccati`` where its library is installed and the NLP's
+            stages are at most :data:`RICCATI_AUTO_MAX_BLOCK` rows, where it is measured faster
+            than MUMPS with the same iterations; ``mumps`` otherwise, without a message.
         tol: IPOPT ``tol`` (overall convergence tolerance; 1e-6, IPOPT's default 1e-8:
             :data:`fatigue_pin.ocp.ipopt_defaults.DEPARTURES` lists every setting unlike IPOPT's).
         constr_viol_tol: IPOPT ``constr_viol_tol``.
@@ -186,7 +189,7 @@ class SolverOptions:
             first run on 2 cores: 3.2 s against 22.7-26 s (docs/ocp.md, "Compiled code").
     """
 
-    linear_solver: str = setting("mumps", "an IPOPT linear solver name (e.g. 'mumps')", is_str)
+    linear_solver: str = setting("auto", "'auto', 'riccati' or an IPOPT linear solver name (e.g. 'mumps')", is_str)
     tol: float = setting(1e-6, "a tolerance > 0", lambda v: is_number(v) and v > 0)
     constr_viol_tol: float = setting(1e-4, "a tolerance > 0", lambda v: is_number(v) and v > 0)
     max_iter: int = setting(3000, "an integer >= 0", lambda v: int(v) == v and v >= 0)
@@ -254,6 +257,11 @@ class SolverOptions:
 #: dense block of the stage-wise elimination (a stage of the UR5 window with Xia halves is about
 #: 130; a cost or constraint coupling distant stages merges them into one block).
 RICCATI_MAX_BLOCK = 300
+#: ``linear_solver = "auto"`` takes the stage-wise solver up to this many rows in one block, MUMPS
+#: above. Measured (docs/ocp.md, "The KKT solve by stages"): arm26's windows and full horizons,
+#: blocks of 52 rows, solve 25-45 % faster with the same iterations; the UR5's, 172 rows, 30 %
+#: slower per iteration of IPOPT's own work.
+RICCATI_AUTO_MAX_BLOCK = 100
 #: Environment variable naming the stage-wise solver's library (development builds).
 RICCATI_LIBRARY_ENV = "FATIGUE_PIN_RICCATI_LIB"
 
@@ -271,7 +279,7 @@ def linear_solver_options(name: str) -> dict[str, Any]:
     """IPOPT options of the linear solver ``name``: ``riccati`` is IPOPT's MA27 interface on
     :func:`riccati_library` (exported as ``ma27ad``, ...), without MC19 scaling (MUMPS has none
     either, and the library exports no MC19)."""
-    if name != "riccati":
+    if name not in ("riccati", "auto"):
         return {"linear_solver": name}
     library = riccati_library()
     if library is None:
@@ -279,19 +287,21 @@ def linear_solver_options(name: str) -> dict[str, Any]:
     return {"linear_solver": "ma27", "hsllib": str(library), "linear_system_scaling": "none"}
 
 
-def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity) -> str | None:
+def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity, max_block: int | None = None) -> str | None:
     """Why the stage-wise solver cannot take an NLP with these Lagrangian Hessian (n x n) and
     constraint Jacobian (m x n) patterns, or None when it can: the library's own analysis of the
     augmented system's pattern (variables in NLP order, each row after the last variable it
-    touches) gives dense blocks of at most :data:`RICCATI_MAX_BLOCK`."""
+    touches) gives dense blocks of at most ``max_block`` rows (default
+    :data:`RICCATI_MAX_BLOCK`)."""
+    limit = RICCATI_MAX_BLOCK if max_block is None else int(max_block)
     library = riccati_library()
     if library is None:
         return "the stage-wise solver's library is not installed"
     biggest, _ = riccati_blocks(hessian, jacobian)
     if biggest < 0:
         return "the augmented system's pattern has no stage order"
-    if biggest > RICCATI_MAX_BLOCK:
-        return (f"its stages merge into a dense block of {biggest} rows (more than {RICCATI_MAX_BLOCK}: "
+    if biggest > limit:
+        return (f"its stages merge into a dense block of {biggest} rows (more than {limit}: "
                 "a cost or constraint couples distant stages)")
     return None
 
@@ -460,18 +470,30 @@ class NlpSolver:
         #: per iteration limit, the instance of the last solve (warm-started or not)
         self._last: dict[int, ca.Function] = {}
         self._solver()
-        if options.linear_solver == "riccati":
+        if options.linear_solver in ("riccati", "auto"):
             self._check_riccati()
         self.build_time_s = time.perf_counter() - t0
 
     def _check_riccati(self) -> None:
         """Fall back to MUMPS, with one line on stderr saying why, where the stage-wise solver
-        cannot take this NLP (:func:`riccati_structure`, on the patterns IPOPT will see)."""
-        solver = next(iter(self._solvers.values()))
-        why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1))
-        if why is not None:
+        cannot take this NLP (:func:`riccati_structure`, on the patterns IPOPT will see); under
+        ``auto``, choose it or MUMPS (:data:`RICCATI_AUTO_MAX_BLOCK`) without a message. The
+        options then name the solver chosen."""
+        auto = self.options.linear_solver == "auto"
+        built_with_mumps = riccati_library() is None  # linear_solver_options gave MUMPS already
+        if built_with_mumps:
+            why = "the stage-wise solver's library is not installed"
+        else:
+            solver = next(iter(self._solvers.values()))
+            why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1),
+                                    RICCATI_AUTO_MAX_BLOCK if auto else None)
+        if why is None:
+            self.options = replace(self.options, linear_solver="riccati")
+            return
+        if not auto:
             print(f"solver.linear_solver = 'riccati': {self._label} is solved with MUMPS instead ({why})", file=sys.stderr)
-            self.options = replace(self.options, linear_solver="mumps")
+        self.options = replace(self.options, linear_solver="mumps")
+        if not built_with_mumps:
             self._solvers.clear()
             self._solver()
 

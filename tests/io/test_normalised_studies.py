@@ -15,6 +15,19 @@ from fatigue_pin.io.study import Study, normalise, to_toml
 from fatigue_pin.io.tables import TASK_ARRAYS, key_tables
 
 FIXTURE = json.loads((Path(__file__).with_name("normalised_studies.json")).read_text())
+#: defaults changed on purpose since the fixture, (section, key) -> (old, new): a study that does
+#: not set the key reads the new default; one stored with the old (every key written) keeps it
+CHANGED_DEFAULTS = {("solver", "linear_solver"): ("mumps", "auto")}  # the stage-wise solver where it wins (docs/ocp.md)
+
+
+def _as_before(new: dict, given: dict) -> dict:
+    """``new`` (a normalised study) with each changed default that ``given`` (its input) did not
+    set back at its old value."""
+    out = json.loads(json.dumps(new))
+    for (section, key), (old, now) in CHANGED_DEFAULTS.items():
+        if out.get(section, {}).get(key) == now and key not in given.get(section, {}):
+            out[section][key] = old
+    return out
 
 
 def _new_keys_at_default(new: dict, old: dict) -> dict:
@@ -68,7 +81,7 @@ def test_the_fixture_covers_every_shipped_study():
 @pytest.mark.parametrize("name", sorted(FIXTURE))
 def test_every_study_normalises_to_the_same_values(name):
     case = FIXTURE[name]
-    new = normalise(case["input"])
+    new = _as_before(normalise(case["input"]), case["input"])
     assert _new_keys_at_default(new, case["normalised"]) == case["normalised"]
     old_text = tomllib.loads(case["toml"])
     assert _new_keys_at_default(tomllib.loads(to_toml(new)), old_text) == old_text

@@ -179,3 +179,38 @@ def _patterns(nlp):
     x = nlp["x"]
     lam = ca.SX.sym("lam", nlp["g"].numel())
     return ca.hessian(nlp["f"] + ca.dot(lam, nlp["g"]), x)[0].sparsity(), ca.jacobian(nlp["g"], x).sparsity()
+
+
+def _chain(N: int = 30, coupled: bool = False) -> ca.Opti:
+    """A double integrator by forward Euler over N stages; ``coupled``: a cost on the sum of all
+    controls, which couples every stage with every other."""
+    opti = ca.Opti()
+    X = opti.variable(2, N + 1)
+    U = opti.variable(1, N)
+    opti.subject_to(X[:, 0] == ca.vertcat(1, 0))
+    for k in range(N):
+        opti.subject_to(X[:, k + 1] == X[:, k] + 0.1 * ca.vertcat(X[1, k], U[0, k]))
+    opti.subject_to(opti.bounded(-2, U, 2))
+    opti.minimize(ca.sumsqr(X) + ca.sumsqr(U) + (ca.sum2(U) ** 2 if coupled else 0))
+    return opti
+
+
+@pytest.mark.parametrize("coupled, chosen", [(False, "riccati"), (True, "mumps")])
+def test_auto_takes_the_stage_wise_solver_where_its_stages_are_small(capsys, coupled, chosen):
+    """``auto`` (the default) resolves to ``riccati`` on stages of a few rows, and to MUMPS, without
+    a message, where a cost merges the stages into one block above RICCATI_AUTO_MAX_BLOCK; both
+    reach the optimum that MUMPS reaches."""
+    import fatigue_pin.ocp.solver as solver_module
+
+    assert SolverOptions().linear_solver == "auto"
+    N = 30 if not coupled else solver_module.RICCATI_AUTO_MAX_BLOCK  # all controls in one block: > the limit
+    opti = _chain(N, coupled)
+    solver = NlpSolver(opti, SolverOptions(compile=False), name=f"auto_{chosen}")
+    assert capsys.readouterr().err == ""
+    assert solver.options.linear_solver == chosen
+    reference = NlpSolver(_chain(N, coupled), SolverOptions(linear_solver="mumps", compile=False), name=f"auto_{chosen}_mumps")
+    capsys.readouterr()
+    nx = opti.nx
+    a, b = solver.solve(np.zeros(0), np.zeros(nx)), reference.solve(np.zeros(0), np.zeros(nx))
+    assert a.status == b.status == "Solve_Succeeded"
+    np.testing.assert_allclose(a.f, b.f, rtol=1e-9)
