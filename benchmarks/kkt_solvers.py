@@ -5,8 +5,9 @@ Usage::
 
     python benchmarks/kkt_solvers.py [--cases arm26,ur5] [--repeats 5] [--iterations 10]
 
-Cases: ``arm26`` the paper's sliding study (studies/curl_sliding_fatigue_paper.toml) and ``ur5``
-benchmarks/studies/ur5_scale.toml, first window each (the compiled library from the cache).
+Cases: ``arm26`` the paper's sliding study (studies/curl_sliding_fatigue_paper.toml), ``ur5``
+benchmarks/studies/ur5_scale.toml and ``muscles`` studies/curl_muscles_sliding.toml, first window
+each (the compiled library from the cache).
 
 Per case, the first window is solved ``--repeats`` times with each solver, alternating. Printed:
 
@@ -38,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CASES = {
     "arm26": ROOT / "studies" / "curl_sliding_fatigue_paper.toml",
     "ur5": ROOT / "benchmarks" / "studies" / "ur5_scale.toml",
+    "muscles": ROOT / "studies" / "curl_muscles_sliding.toml",
 }
 SOLVERS = ("riccati", "mumps")
 TIMING = {"factor": "LinearSystemFactorization", "backsolve": "LinearSystemBackSolve",

@@ -15,7 +15,9 @@ a re-plan every 5 intervals (0.1 s). Configurations (changes of the study, as ``
 * ``mu_init-1e-2``, ``mu_init-1e-3``: IPOPT's first barrier parameter lowered from 1 (the
   re-plans start from the previous plan shifted, a guess close to the optimum);
 * ``warm``: ``horizon.warm_start``: every re-plan starts from the last plan's primal and dual
-  solution moved by the intervals between them (IPOPT's warm start).
+  solution moved by the intervals between them (IPOPT's warm start);
+* ``mumps``, ``riccati``: IPOPT's linear solver (``now`` is the study's, ``auto``: ``riccati``
+  on arm26).
 
 Every run is a child process; the configurations alternate within each repeat; the compile
 cache is built first (not timed). Printed: per configuration the medians over the repeats of the
@@ -42,6 +44,8 @@ CONFIGS: dict[str, dict] = {
     "mu_init-1e-2": {"solver.mu_init": 1e-2},
     "mu_init-1e-3": {"solver.mu_init": 1e-3},
     "warm": {"horizon.warm_start": True},
+    "mumps": {"solver.linear_solver": "mumps"},
+    "riccati": {"solver.linear_solver": "riccati"},
 }
 LOOP = {"mpc.replan_every": 5, "mpc.estimator": "open-loop", "horizon.max_cycles": 6}
 
