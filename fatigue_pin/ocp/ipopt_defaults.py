@@ -77,7 +77,8 @@ DEPARTURES: tuple[Departure, ...] = (
     Departure("linear_solver", "mumps", "IPOPT", "linear_solver", EVERY_SOLVE, False,
               "auto: the package's stage-wise solver of the augmented system (IPOPT's MA27 interface on its library, "
               "hsllib, without MC19 scaling) where its blocks are at most 100 rows, MUMPS otherwise; the same iterates up "
-              "to round-off, 25-45 % less solving on arm26 (docs/ocp.md, \"The KKT solve by stages\")"),
+              "to round-off (which can still decide a window at the edge of the iteration limit), 25-45 % less solving on "
+              "arm26 (docs/ocp.md, \"The KKT solve by stages\"); the paper's curl studies state mumps"),
     Departure("print_level", 5, "IPOPT", "print_level", EVERY_SOLVE, False,
               "quiet: fatigue_pin reports its own progress; solver.print_level = 5 shows IPOPT's iteration log"),
     Departure("sb", "no", "IPOPT", "", EVERY_SOLVE, False, "no IPOPT banner in the output of every solve"),
