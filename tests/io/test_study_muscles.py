@@ -84,3 +84,20 @@ def test_muscle_keys_that_need_muscles_are_refused_on_torque_halves(arm26):
         small_curl("full").replace({"fatigue.muscles": {"BRA": {"F": 0.1}}}).actuators(arm26)
     with pytest.raises(StudyError, match=r"actuators.kind = 'pistons': expected one of \['torque', 'muscles', 'motors'\]"):
         small_curl("full").replace({"actuators.kind": "pistons"})
+
+
+def test_the_exhaustion_study_is_the_sliding_one_with_weak_residuals(arm26):
+    """studies/curl_muscles_exhaustion.toml differs from curl_muscles_sliding.toml only in its
+    name, its residual bound (5 N m, which the run to exhaustion rests on: docs/muscles.md) and its
+    cycle cap; its residual halves are bounded at 5 N m and do not tire."""
+    from pathlib import Path
+
+    studies = Path(__file__).resolve().parents[2] / "studies"
+    sliding = Study.from_file(studies / "curl_muscles_sliding.toml")
+    exhaustion = Study.from_file(studies / "curl_muscles_exhaustion.toml")
+    assert exhaustion.replace({"name": sliding.data["name"], "actuators.residuals": 50.0,
+                               "horizon.max_cycles": sliding.data["horizon"]["max_cycles"]}).data == sliding.data
+    assert exhaustion.data["horizon"]["max_cycles"] > 30
+    layer = exhaustion.replace({"actuators.paths": "exact"}).actuators(arm26)  # no fit of the paths: a short test
+    assert np.array_equal(layer.control_bounds()[1], np.r_[np.ones(6), 5.0, 5.0, 0.0, 0.0])
+    assert all(u.params.F == 0.0 and u.params.R == 0.0 for u in layer.halves[6:])

@@ -45,7 +45,7 @@ GRID = {"curl_physiological.toml": (50, 8), "bioptim_pendulum_xia.toml": (30, 20
 #: intervals with 8 substeps of 0.0125 s, 35-90 s of solve and 15-60 s of verify; with 4 substeps
 #: of 0.025 s the gaps fail: qdot 6.8e-3 rad/s, fatigue 1.5e-5): run with ``-m slow``. The default
 #: suite verifies a muscle run on polynomial paths in tests/verify/test_verify_muscles.py.
-SLOW = {"curl_muscles_sliding.toml", "ur5_motors_paced.toml"}
+SLOW = {"curl_muscles_sliding.toml", "curl_muscles_exhaustion.toml", "ur5_motors_paced.toml"}
 #: (ur5_motors_paced.toml, 17 s, is ur5_motors_lift.toml with a tighter limit and the heat budget:
 #: the lift's short result is verified by default, the budget's rows in tests/drivers/test_heat_budget.py.)
 #: Models whose studies are verified on their shipped grid (intervals per cycle and substeps as
