@@ -97,8 +97,8 @@ def main() -> None:
                    "ended": runs[-1]["ended"], "compiled": any(r["compile"] > 0 for r in runs),
                    "verify": verify(out, env) if args.verify else "-"}
             rows.append(row)
-    print(f"\n| variant | runs | compile (s) | median window (s) | converged windows' solve (s) | failing window (s) | whole run wall (s) "
-          f"| iterations | repetitions | ended | verify |\n|---|---|---|---|---|---|---|---|---|---|---|")
+    print("\n| variant | runs | compile (s) | median window (s) | converged windows' solve (s) | failing window (s) | whole run wall (s) "
+          "| iterations | repetitions | ended | verify |\n|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         comp = f"{r['compile']:.1f}" if r["compiled"] else "cached"
         print(f"| {r['label']} | {args.runs} | {comp} | {r['median']:.2f} | {r['solve']:.1f} | {r['failed']:.1f} | {r['wall']:.1f} "
