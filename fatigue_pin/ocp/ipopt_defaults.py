@@ -74,11 +74,12 @@ DEPARTURES: tuple[Departure, ...] = (
     Departure("perturb_dec_fact", 1.0 / 3.0, "IPOPT", "perturb_dec_fact", EVERY_SOLVE, True,
               "the exact Hessian is indefinite on most iterations far from the solution; lowering the regularisation more "
               "slowly after such an iteration saves KKT factorisations (16 cycles: 108 iterations at 90 ms against 119 at 95 ms)"),
-    Departure("linear_solver", "mumps", "IPOPT", "linear_solver", EVERY_SOLVE, False,
+    Departure("linear_solver", "mumps", "IPOPT", "linear_solver", EVERY_SOLVE, True,
               "auto: the package's stage-wise solver of the augmented system (IPOPT's MA27 interface on its library, "
-              "hsllib, without MC19 scaling) where its blocks are at most 100 rows, MUMPS otherwise; the same iterates up "
-              "to round-off (which can still decide a window at the edge of the iteration limit), 25-45 % less solving on "
-              "arm26 (docs/ocp.md, \"The KKT solve by stages\"); the paper's curl studies state mumps"),
+              "hsllib, without MC19 scaling) where its blocks are at most 100 rows, MUMPS otherwise; 25-45 % less solving "
+              "on arm26 with the same iterates up to round-off, which can still decide a window at the iteration limit or "
+              "which of several local optima a solve finds (docs/ocp.md, \"The KKT solve by stages\"); the paper's and "
+              "bioptim's studies state mumps"),
     Departure("print_level", 5, "IPOPT", "print_level", EVERY_SOLVE, False,
               "quiet: fatigue_pin reports its own progress; solver.print_level = 5 shows IPOPT's iteration log"),
     Departure("sb", "no", "IPOPT", "", EVERY_SOLVE, False, "no IPOPT banner in the output of every solve"),

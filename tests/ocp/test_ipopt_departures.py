@@ -141,8 +141,8 @@ def test_the_line_names_the_defaults_in_force_that_the_study_does_not_set():
 
 def test_departures_in_force_follow_the_options():
     assert departures_line([]) == ""
-    assert [d.option for d in departures_in_force(SolverOptions(), given={"tol"})] == ["mu_init", "perturb_dec_fact"]
-    assert departures_in_force(SolverOptions(ipopt={"tol": 1e-8, "mu_init": 0.1, "perturb_dec_fact": 0.5})) == []
+    assert [d.option for d in departures_in_force(SolverOptions(), given={"tol"})] == ["mu_init", "perturb_dec_fact", "linear_solver"]
+    assert departures_in_force(SolverOptions(ipopt={"tol": 1e-8, "mu_init": 0.1, "perturb_dec_fact": 0.5}), given={"linear_solver"}) == []
 
 
 def test_run_prints_the_line_before_solving(tmp_path, capsys):
