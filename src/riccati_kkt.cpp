@@ -374,7 +374,7 @@ struct Solver {
   std::vector<double> sc; // the equilibration, per index
   std::vector<double> workspace[2];  // the fronts of two consecutive blocks
   std::vector<int> block_of;  // position -> block
-  Vec work, rhs;
+  Vec rhs;
   int negative = 0;
   bool singular = false;
   int max_block = 0;
@@ -538,7 +538,6 @@ struct Solver {
       tri_i[k] = irn[k] - 1;
       tri_j[k] = jcn[k] - 1;
     }
-    work.resize(n);
     rhs.resize(n);
     return 0;
   }
@@ -551,9 +550,8 @@ struct Solver {
     F.bind(workspace[b % 2].data());
     F.M.triangularView<Eigen::Lower>().setZero();
     double* base = F.M.data();
-    for (const auto& [k, off] : by_block[b]) base[off] += a[k] * scaling(tri_i[k]) * scaling(tri_j[k]);
+    for (const auto& [k, off] : by_block[b]) base[off] += a[k] * sc[tri_i[k]] * sc[tri_j[k]];
   }
-  double scaling(int i) const { return sc[i]; }
 
   // Symmetric equilibration S A S, S = diag(1 / sqrt(largest |entry| of each row)): a congruence,
   // so the inertia is A's; IPOPT's matrices carry bound terms and regularisations many orders of

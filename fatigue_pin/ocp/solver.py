@@ -276,9 +276,10 @@ def riccati_library() -> Path | None:
 
 
 def linear_solver_options(name: str) -> dict[str, Any]:
-    """IPOPT options of the linear solver ``name``: ``riccati`` is IPOPT's MA27 interface on
-    :func:`riccati_library` (exported as ``ma27ad``, ...), without MC19 scaling (MUMPS has none
-    either, and the library exports no MC19)."""
+    """IPOPT options of the linear solver ``name``: ``riccati`` (and ``auto``, until
+    :class:`NlpSolver` has chosen) is IPOPT's MA27 interface on :func:`riccati_library` (exported
+    as ``ma27ad``, ...), without IPOPT's MC19 scaling (the library exports none; it equilibrates
+    the matrix itself, as MUMPS does); MUMPS where the library is missing."""
     if name not in ("riccati", "auto"):
         return {"linear_solver": name}
     library = riccati_library()
@@ -480,20 +481,16 @@ class NlpSolver:
         ``auto``, choose it or MUMPS (:data:`RICCATI_AUTO_MAX_BLOCK`) without a message. The
         options then name the solver chosen."""
         auto = self.options.linear_solver == "auto"
-        built_with_mumps = riccati_library() is None  # linear_solver_options gave MUMPS already
-        if built_with_mumps:
-            why = "the stage-wise solver's library is not installed"
-        else:
-            solver = next(iter(self._solvers.values()))
-            why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1),
-                                    RICCATI_AUTO_MAX_BLOCK if auto else None)
+        solver = next(iter(self._solvers.values()))
+        why = riccati_structure(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1),
+                                RICCATI_AUTO_MAX_BLOCK if auto else None)
         if why is None:
             self.options = replace(self.options, linear_solver="riccati")
             return
         if not auto:
             print(f"solver.linear_solver = 'riccati': {self._label} is solved with MUMPS instead ({why})", file=sys.stderr)
         self.options = replace(self.options, linear_solver="mumps")
-        if not built_with_mumps:
+        if riccati_library() is not None:  # else linear_solver_options gave MUMPS already
             self._solvers.clear()
             self._solver()
 
