@@ -220,9 +220,10 @@ class IntervalFunctions:
 
     def _active_rigid_body(self, h: float, substeps: int, one_direction: bool = False) -> ca.Function:
         """``F_rb_active(y, m, u, p) -> y_next``: RK4 of ``(y, m)`` with the joint torque of the
-        halves' active fractions (``active`` coupling) or of the muscles, its y part. MX calls of
-        the SX right-hand sides, as :attr:`F_rb`; ``one_direction``: their derivatives one
-        direction at a time (for compiled code)."""
+        halves' active fractions (``active`` coupling) or of the muscles, its y part (RK4 of y
+        alone where that torque does not depend on m: the same y part). MX calls of the SX
+        right-hand sides, as :attr:`F_rb`; ``one_direction``: their derivatives one direction at
+        a time (for compiled code), except in the Jacobian block (:attr:`_F_rb_active_jacobian`)."""
         A, L = self.actuators, self.layout
         ny = L.nq + L.nv
         y, m = ca.MX.sym("y", ny), ca.MX.sym("m", A.n_states)
@@ -230,20 +231,34 @@ class IntervalFunctions:
         z = ca.SX.sym("z", ny + A.n_states)
         us, ps = ca.SX.sym("u", A.nu), ca.SX.sym("p", A.n_params)
         tau = A.joint_torque(us, z[ny:], z[:ny])  # muscles: on (q, qdot) too
-        # compiled, its derivatives one direction at a time: the Hessian block of the muscle curl
-        # (arm26, polynomial paths) is 2.0 MB of C against 11.7 MB with CasADi's bundled directions,
-        # the Jacobian block 0.55 against 1.18 MB (docs/muscles.md, "Compiled muscle problems");
-        # uncompiled, the bundled directions are five times faster in CasADi's virtual machine
-        f = ca.Function("f_active", [z, us, ps], [ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps))],
-                        {"max_num_dir": 1} if one_direction else {})
-        z0, dt = ca.vertcat(y, m), h * substeps
-        z_next = rk4(f, z0, (u, p), h, substeps)
+        if ca.depends_on(tau, z[ny:]):
+            zs, rates, z0 = z, ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps)), ca.vertcat(y, m)
+        else:
+            # a torque of (q, qdot, u) alone (muscles whose force the fatigue states do not scale):
+            # RK4 of y alone has the same y part, without the fatigue states' stages, which the
+            # derivative calls of compiled code would carry
+            zs, rates, z0 = z[:ny], self.f_rb(z[:ny], tau), y
+
+        def flow(options: dict) -> tuple[ca.Function, ca.Function]:
+            f = ca.Function("f_active", [zs, us, ps], [rates], options)
+            return f, ca.Function("F_rb_active", [y, m, u, p], [rk4(f, z0, (u, p), h, substeps)[:ny]], ["y", "m", "u", "p"], ["y_next"])
+
+        # compiled, the second derivatives one direction at a time: the Hessian block of the muscle
+        # curl (arm26, polynomial paths) is 2.0 MB of C against 11.7 MB with CasADi's bundled
+        # directions (docs/muscles.md, "Compiled muscle problems"); uncompiled, the bundled
+        # directions are five times faster in CasADi's virtual machine. The Jacobian block takes
+        # its ny adjoint directions together (one forward pass per stage instead of ny): the muscle
+        # curl's Jacobian 25 % faster for 12 % more code (docs/muscles.md, "Speed").
+        #: the flow whose Jacobian block :meth:`build_blocks` takes (bundled directions), or None
+        self._F_rb_active_jacobian = flow({"max_num_dir": ny})[1] if one_direction else None
+        f, F = flow({"max_num_dir": 1} if one_direction else {})
+        dt = h * substeps
         # the approximate Hessians' flows (solver.hessian): one RK4 step, one explicit Euler step
         self.F_rb_active_one_step = ca.Function("F_rb_active_one_step", [y, m, u, p], [rk4(f, z0, (u, p), dt, 1)[:ny]],
                                                 ["y", "m", "u", "p"], ["y_next"])
         self.F_rb_active_euler_step = ca.Function("F_rb_active_euler_step", [y, m, u, p], [(z0 + dt * f(z0, u, p))[:ny]],
                                                   ["y", "m", "u", "p"], ["y_next"])
-        return ca.Function("F_rb_active", [y, m, u, p], [z_next[:ny]], ["y", "m", "u", "p"], ["y_next"])
+        return F
 
     def rigid_body_step(self, y: ca.MX, m: ca.MX, u: ca.MX, p: ca.MX, T: ca.MX | None = None,
                         call: Callable[..., ca.MX] | None = None) -> ca.MX:
@@ -282,11 +297,13 @@ class IntervalFunctions:
                 continue
             rb = f.name() == "F_rb"
             diff = tuple(int(i) for i in diffs[f.name()])
-            analytical = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and diff == (0, 1) else None
+            ready = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and diff == (0, 1) else None
+            if f.name() == "F_rb_active" and self._F_rb_active_jacobian is not None:
+                ready = block_functions(self._F_rb_active_jacobian, diff, hessian=False).jac
             # gauss-newton drops the rigid body's second derivatives, with a state-dependent torque too
             exact = not (f.name() in ("F_rb", "F_rb_active") and hessian == "gauss-newton")
             self.blocks[f.name()] = block_functions(f, diff, hessian=exact,
-                                                    hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=analytical)
+                                                    hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=ready)
         self.blocks_hessian = hessian
 
     def block_functions(self) -> list[ca.Function]:
