@@ -247,8 +247,8 @@ class IntervalFunctions:
         # curl (arm26, polynomial paths) is 2.0 MB of C against 11.7 MB with CasADi's bundled
         # directions (docs/muscles.md, "Compiled muscle problems"); uncompiled, the bundled
         # directions are five times faster in CasADi's virtual machine. The Jacobian block takes
-        # its ny adjoint directions together (one forward pass per stage instead of ny): the muscle
-        # curl's Jacobian 25 % faster for 12 % more code (docs/muscles.md, "Speed").
+        # its ny adjoint directions together (one forward pass per stage instead of ny): 40 % less
+        # CPU for the muscle curl's Jacobian (docs/muscles.md, "To exhaustion").
         #: the flow whose Jacobian block :meth:`build_blocks` takes (bundled directions), or None
         self._F_rb_active_jacobian = flow({"max_num_dir": ny})[1] if one_direction else None
         f, F = flow({"max_num_dir": 1} if one_direction else {})
