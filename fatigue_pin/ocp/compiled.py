@@ -49,6 +49,7 @@ from typing import Callable, Iterator, Mapping, Sequence
 
 import casadi as ca
 
+from fatigue_pin.core.cores import usable_cores
 from fatigue_pin.core.errors import CompileError, ParameterError
 from fatigue_pin.core.files import atomic_write_bytes, locked
 from fatigue_pin.core.text import shown
@@ -118,7 +119,7 @@ class BuildOptions:
 
     def resolved_jobs(self) -> int:
         """Compiler processes run at once."""
-        return int(self.jobs) if self.jobs is not None else max(1, os.cpu_count() or 1)
+        return int(self.jobs) if self.jobs is not None else usable_cores()
 
     def resolved_cache_dir(self) -> Path:
         """Directory of the compiled-code cache (:func:`cache_folder`)."""

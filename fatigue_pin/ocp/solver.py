@@ -142,7 +142,7 @@ class SolverOptions:
             any horizon around them: a new horizon builds in seconds. ``nlp`` generates and
             compiles the whole NLP of each horizon (about a minute each on arm26); measured slower
             per iteration than ``library`` at 4, 16 and 32 cycles (docs/ocp.md, "Compiled code").
-        compile_jobs: compiler processes for a library (default: every core).
+        compile_jobs: compiler processes for a library (default: every core this process may use).
         accept_acceptable: count IPOPT's ``Solved_To_Acceptable_Level`` as converged, as CasADi's
             ``success`` flag does (and so the authors' code, docs/authors-code.md D11). Default
             False: only ``Solve_Succeeded`` converges.

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 __all__ = ["GUESSES", "INTEGRATORS", "MAP_MODES", "IntervalFunctions", "Ocp", "OcpSolution", "ParameterLayout", "Transcription", "rk4"]
 
-import os
 import time
 from dataclasses import dataclass
 from typing import Callable, Mapping
@@ -43,6 +42,7 @@ from typing import Callable, Mapping
 import casadi as ca
 import numpy as np
 
+from fatigue_pin.core.cores import usable_cores
 from fatigue_pin.ocp import bounds
 from fatigue_pin.ocp.blocks import MappedCall, differentiated_inputs, nlp_derivatives
 from fatigue_pin.ocp.guesses import GUESSES, initial_guess
@@ -207,7 +207,7 @@ class Ocp:
         """Arguments of ``Function.map`` after the count: :attr:`map_mode`, and the thread count
         with ``thread``."""
         mode = self.map_mode
-        return (mode, max(1, os.cpu_count() or 1)) if mode == "thread" else (mode,)
+        return (mode, usable_cores()) if mode == "thread" else (mode,)
 
     @property
     def mapped_calls(self) -> tuple[MappedCall, ...]:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fatigue_pin.core.cores import usable_cores
 from fatigue_pin.paper.curl import COSTS, PAPER_MINUTES_S0, PAPER_REPETITIONS
 
 from fatigue_pin.core.progress import Progress, as_reporter
@@ -165,7 +166,7 @@ def reproduce(
             max_cycles=6 if quick else None)
         for h in ("sliding", "full") for S in stabilisers for c in COSTS
     ]
-    workers = max(1, min(jobs or os.cpu_count() or 1, len(job_list)))
+    workers = max(1, min(jobs or usable_cores(), len(job_list)))
     progress(f"{len(job_list)} OCP runs on {workers} processes ...")
     rows: list[dict[str, object]] = []
     init = _one_thread_per_worker if workers > 1 else None

@@ -9,6 +9,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
+from fatigue_pin.core.cores import usable_cores
 from fatigue_pin.core.settings import check_fields, is_int, is_str, setting
 from fatigue_pin.sweep.plan import SweepError
 
@@ -19,7 +20,7 @@ def local_cluster(workers: int | None = None):
     """One single-threaded worker process per core, everything on 127.0.0.1."""
     from distributed import LocalCluster
 
-    n = workers or os.cpu_count() or 1
+    n = workers or usable_cores()
     return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                         dashboard_address="127.0.0.1:0", scheduler_port=0)
 
