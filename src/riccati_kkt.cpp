@@ -102,6 +102,11 @@ struct DenseLdl {
   void factor(double tiny) {
     perm.resize(ns);
     for (int i = 0; i < ns; ++i) perm[i] = i;
+    swap_kk.assign(ns, -1);
+    swap_kp.assign(ns, -1);
+    colptr.assign(ns + 1, 0);
+    ri.clear();
+    lv.clear();
     d.setZero(ns);
     e.setZero(ns);
     negative = 0;
@@ -143,6 +148,8 @@ struct DenseLdl {
         for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
         std::swap(M(kk, kk), M(kp, kp));
         std::swap(perm[kk], perm[kp]);
+        swap_kk[k] = kk;
+        swap_kp[k] = kp;
       }
       if (kstep == 1) {
         const double dk = M(k, k);
@@ -162,7 +169,57 @@ struct DenseLdl {
             double* T = &M(k + 1, k + 1);
             const int* ix = nzi.data();
             const double* wp = wv.data();
-            for (int a = 0; a < nn; ++a) {
+            // Pivot k + 1 fused with this one when it is a 1x1 pivot without interchange: its
+            // column is updated first (T's column 0), Bunch-Kaufman's test is run on it, and the
+            // rest of both updates is one rank-2 pass over the trailing matrix (each entry read
+            // and written once for two products).
+            int a0 = 0;
+            if (ix[0] == 0 && k + 1 < ns) {
+              const double wj = wp[0] * s;
+              for (int b = 0; b < nn; ++b) T[ix[b]] += wp[b] * wj;
+              a0 = 1;
+              const double d1 = M(k + 1, k + 1);
+              const double cmax = k + 2 < ns ? M.col(k + 1).segment(k + 2, ns - k - 2).cwiseAbs().maxCoeff() : 0.0;
+              if (std::abs(d1) > tiny && std::abs(d1) >= alpha * cmax && m > 1) {
+                d(k + 1) = d1;
+                if (d1 < 0) ++negative;
+                M(k + 1, k) /= dk;
+                const int m2 = m - 1;
+                double* w1 = &M(k + 2, k);
+                double* w2 = &M(k + 2, k + 1);
+                gather(w1, w2, m2);
+                const int n2 = static_cast<int>(nzi.size());
+                if (sparse(n2, m2)) {
+                  double* T2 = &M(k + 2, k + 2);
+                  const int* jx = nzi.data();
+                  const double* p1 = wv.data();
+                  const double* p2 = wv.data() + n2;
+                  const double r0 = 1.0 / dk, r1 = 1.0 / d1;
+                  for (int a = 0; a < n2; ++a) {
+                    const double u1 = r0 * p1[a], u2 = r1 * p2[a];
+                    double* col = T2 + jx[a] * ld;
+                    for (int b = a; b < n2; ++b) col[jx[b]] -= p1[b] * u1 + p2[b] * u2;
+                  }
+                } else {
+                  auto T2 = M.bottomRightCorner(m2, m2).selfadjointView<Eigen::Lower>();
+                  T2.rankUpdate(M.col(k).tail(m2), -1.0 / dk);
+                  T2.rankUpdate(M.col(k + 1).tail(m2), -1.0 / d1);
+                }
+                for (int a = 0; a < n2; ++a) {
+                  w1[nzi[a]] /= dk;
+                  w2[nzi[a]] /= d1;
+                }
+                if (M(k + 1, k) != 0.0) {
+                  ri.push_back(k + 1);
+                  lv.push_back(M(k + 1, k));
+                }
+                keep(k, k + 2);
+                keep(k + 1, k + 2);
+                k += 2;
+                continue;
+              }
+            }
+            for (int a = a0; a < nn; ++a) {
               const double wj = wp[a] * s;
               double* col = T + ix[a] * ld;
               for (int b = a; b < nn; ++b) col[ix[b]] += wp[b] * wj;
@@ -173,6 +230,8 @@ struct DenseLdl {
             M.col(k).tail(m) /= dk;
           }
         }
+        if (m > 0) keep(k, k + 1);
+        else colptr[k + 1] = static_cast<int>(ri.size());
       } else {
         const double a = M(k, k), b = M(k + 1, k), c = M(k + 1, k + 1);
         const double det = a * c - b * b;
@@ -220,9 +279,36 @@ struct DenseLdl {
           }
         }
         M(k + 1, k) = 0.0;
+        if (m2 > 0) {
+          keep(k, k + 2);
+          keep(k + 1, k + 2);
+        } else {
+          colptr[k + 1] = colptr[k + 2] = static_cast<int>(ri.size());
+        }
       }
       k += kstep;
     }
+    // rows kept at a pivot are positions at that time: later interchanges moved them. Walking
+    // back, g maps a position at the time of the pivot to its final one.
+    g.resize(n);
+    for (int i = 0; i < n; ++i) g[i] = i;
+    for (int c = ns - 1; c >= 0; --c) {
+      for (int t = colptr[c]; t < colptr[c + 1]; ++t) ri[t] = g[ri[t]];
+      if (swap_kp[c] >= 0) std::swap(g[swap_kk[c]], g[swap_kp[c]]);
+    }
+  }
+
+  // L's column c (divided by D) on the rows r0 + nzi, where it is nonzero: kept for the solves
+  // as soon as it is final (only later interchanges move its rows), which spares a scan of the
+  // front afterwards
+  void keep(int c, int r0) {
+    const double* col = &M(r0, c);
+    for (int i : nzi)
+      if (col[i] != 0.0) {
+        ri.push_back(r0 + i);
+        lv.push_back(col[i]);
+      }
+    colptr[c + 1] = static_cast<int>(ri.size());
   }
 
   // Y <- D^{-1} Y (rows in pivoted order)
@@ -246,24 +332,11 @@ struct DenseLdl {
 
   void bind(double* storage) { new (&M) Eigen::Map<Mat>(storage, n, n); }
 
-  // After the factorisation: L's nonzeros column by column (below the diagonal, the next block's
-  // coupled rows included), for the solves; the front's storage is then free for the next block.
+  // L's nonzeros column by column (below the diagonal, the next block's coupled rows included,
+  // rows in final positions), for the solves: the front's storage is free for the next block
   IVec colptr, ri;
   std::vector<double> lv;
-  void compress() {
-    colptr.assign(ns + 1, 0);
-    ri.clear();
-    lv.clear();
-    for (int k = 0; k < ns; ++k) {
-      const double* c = &M(0, k);
-      for (int i = k + 1; i < n; ++i)
-        if (c[i] != 0.0) {
-          ri.push_back(i);
-          lv.push_back(c[i]);
-        }
-      colptr[k + 1] = static_cast<int>(ri.size());
-    }
-  }
+  IVec swap_kk, swap_kp, g;  // the interchange at each pivot (-1: none), and the map above
 
   // Forward half of a solve: y[0, ns) <- D^{-1} L11^{-1} P^T x and y[ns, n) <- -L21 L11^{-1} P^T x
   // (to be added to the next block's coupled rows)
@@ -650,7 +723,6 @@ struct Solver {
         for (int j = 0; j < r; ++j)
           for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) += B.ldl.M(s + i, s + j);  // rows ascending: lower
       }
-      B.ldl.compress();
     }
   }
 
