@@ -115,6 +115,10 @@ struct DenseLdl {
     int k = 0;
     while (k < ns) {
       const int m = n - k - 1;
+      if (ns - k >= DENSE_MIN && dense_column(k)) {
+        dense_tail(k, tiny);
+        break;
+      }
       double absakk = std::abs(M(k, k));
       int imax = k;
       double colmax = 0.0;
@@ -142,15 +146,7 @@ struct DenseLdl {
         }
       }
       const int kk = k + kstep - 1;
-      if (kp != kk) {  // symmetric interchange in the lower triangle (as LAPACK's dsytf2)
-        M.row(kk).head(kk).swap(M.row(kp).head(kk));
-        if (kp + 1 < n) M.col(kk).tail(n - kp - 1).swap(M.col(kp).tail(n - kp - 1));
-        for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
-        std::swap(M(kk, kk), M(kp, kp));
-        std::swap(perm[kk], perm[kp]);
-        swap_kk[k] = kk;
-        swap_kp[k] = kp;
-      }
+      if (kp != kk) interchange(k, kk, kp);
       if (kstep == 1) {
         const double dk = M(k, k);
         if (!(std::abs(dk) > tiny)) {
@@ -298,9 +294,131 @@ struct DenseLdl {
     }
   }
 
+  // symmetric interchange of kk and kp in the lower triangle (as LAPACK's dsytf2), at pivot k
+  void interchange(int k, int kk, int kp) {
+    M.row(kk).head(kk).swap(M.row(kp).head(kk));
+    if (kp + 1 < n) M.col(kk).tail(n - kp - 1).swap(M.col(kp).tail(n - kp - 1));
+    for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
+    std::swap(M(kk, kk), M(kp, kp));
+    std::swap(perm[kk], perm[kp]);
+    swap_kk[k] = kk;
+    swap_kp[k] = kp;
+  }
+
+  // The dense rest of a front: once a pivot's column is nonzero on 3/4 of the trailing rows
+  // (the minimum-degree order leaves the rows with the dense Schur complement last), the
+  // remaining pivots are factorised by panels of PANEL columns (as LAPACK's dlasyf): within a
+  // panel each column is brought up to date only when it is reached (one matrix-vector product
+  // with the panel's columns), Bunch-Kaufman chooses the pivot on it as above, and the trailing
+  // matrix receives the panel's updates at once (one matrix product) instead of one rank-1 or
+  // rank-2 update per pivot. The same pivots, the same products, in another order.
+  static constexpr int PANEL = 16;
+  static constexpr int DENSE_MIN = 8;  // fewer remaining pivots: not worth a panel
+  Mat W;                               // the panel's updated columns (L D), by absolute row
+  bool dense_column(int k) const {
+    const int m = n - k - 1;
+    const double* c = &M(k + 1, k);
+    int nn = 0;
+    for (int i = 0; i < m; ++i) nn += c[i] != 0.0;
+    return !sparse(nn, m);
+  }
+  void dense_tail(int k, double tiny) {
+    const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
+    if (W.rows() < n) W.resize(n, PANEL);
+    while (k < ns) {
+      const int p0 = k;
+      int jc = 0;
+      while (k < ns && jc < PANEL - 1) {
+        const int r = n - k;
+        // column k up to date: its stored (lower-triangle) entries minus the panel's updates
+        W.col(jc).segment(k, r) = M.col(k).tail(r) - M.block(k, p0, r, jc) * W.row(k).head(jc).transpose();
+        double absakk = std::abs(W(k, jc)), colmax = 0.0;
+        int imax = k;
+        if (ns - k - 1 > 0) {
+          Eigen::Index t;
+          colmax = W.col(jc).segment(k + 1, ns - k - 1).cwiseAbs().maxCoeff(&t);
+          imax = k + 1 + static_cast<int>(t);
+        }
+        if (!(std::max(absakk, colmax) > tiny)) {
+          singular = true;
+          return;
+        }
+        int kstep = 1, kp = k;
+        if (absakk < alpha * colmax) {
+          // column imax up to date (row imax of the lower triangle, then its column)
+          for (int i = k; i < imax; ++i) W(i, jc + 1) = M(imax, i);
+          W.col(jc + 1).segment(imax, n - imax) = M.col(imax).tail(n - imax);
+          W.col(jc + 1).segment(k, r) -= M.block(k, p0, r, jc) * W.row(imax).head(jc).transpose();
+          double rowmax = 0.0;
+          for (int i = k; i < ns; ++i)
+            if (i != imax) rowmax = std::max(rowmax, std::abs(W(i, jc + 1)));
+          if (absakk * rowmax >= alpha * colmax * colmax) {
+            kp = k;
+          } else if (std::abs(W(imax, jc + 1)) >= alpha * rowmax) {
+            kp = imax;
+            W.col(jc).segment(k, r) = W.col(jc + 1).segment(k, r);
+          } else {
+            kp = imax;
+            kstep = 2;
+          }
+        }
+        const int kk = k + kstep - 1;
+        if (kp != kk) {
+          interchange(k, kk, kp);
+          W.row(kk).head(jc + kstep).swap(W.row(kp).head(jc + kstep));
+        }
+        if (kstep == 1) {
+          const double dk = W(k, jc);
+          if (!(std::abs(dk) > tiny)) {
+            singular = true;
+            return;
+          }
+          d(k) = dk;
+          if (dk < 0) ++negative;
+          M.col(k).tail(r - 1) = W.col(jc).segment(k + 1, r - 1) / dk;
+          keep_all(k, k + 1);
+        } else {
+          const double a = W(k, jc), b = W(k + 1, jc), c = W(k + 1, jc + 1);
+          const double det = a * c - b * b;
+          if (!(std::abs(det) > tiny)) {
+            singular = true;
+            return;
+          }
+          d(k) = a;
+          d(k + 1) = c;
+          e(k) = b;
+          if (det < 0) negative += 1;
+          else if (a + c < 0) negative += 2;
+          const double pp = c / det, qq = -b / det, rr = a / det;
+          const int r2 = r - 2;
+          M.col(k).tail(r2) = W.col(jc).segment(k + 2, r2) * pp + W.col(jc + 1).segment(k + 2, r2) * qq;
+          M.col(k + 1).tail(r2) = W.col(jc).segment(k + 2, r2) * qq + W.col(jc + 1).segment(k + 2, r2) * rr;
+          M(k + 1, k) = 0.0;
+          keep_all(k, k + 2);
+          keep_all(k + 1, k + 2);
+        }
+        k += kstep;
+        jc += kstep;
+      }
+      // the panel's updates of the trailing matrix (the next block's coupled rows included)
+      const int r = n - k;
+      if (r > 0)
+        M.bottomRightCorner(r, r).triangularView<Eigen::Lower>() -= M.block(k, p0, r, jc) * W.block(k, 0, r, jc).transpose();
+    }
+  }
+
   // L's column c (divided by D) on the rows r0 + nzi, where it is nonzero: kept for the solves
   // as soon as it is final (only later interchanges move its rows), which spares a scan of the
   // front afterwards
+  void keep_all(int c, int r0) {
+    const double* col = &M(0, c);
+    for (int i = r0; i < n; ++i)
+      if (col[i] != 0.0) {
+        ri.push_back(i);
+        lv.push_back(col[i]);
+      }
+    colptr[c + 1] = static_cast<int>(ri.size());
+  }
   void keep(int c, int r0) {
     const double* col = &M(r0, c);
     for (int i : nzi)
