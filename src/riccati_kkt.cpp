@@ -305,7 +305,7 @@ struct DenseLdl {
     swap_kp[k] = kp;
   }
 
-  // The dense rest of a front: once a pivot's column is nonzero on 3/4 of the trailing rows
+  // The dense rest of a front: once a pivot's column is nonzero on 2/5 of the trailing rows
   // (the minimum-degree order leaves the rows with the dense Schur complement last), the
   // remaining pivots are factorised by panels of PANEL columns (as LAPACK's dlasyf): within a
   // panel each column is brought up to date only when it is reached (one matrix-vector product
@@ -320,7 +320,7 @@ struct DenseLdl {
     const double* c = &M(k + 1, k);
     int nn = 0;
     for (int i = 0; i < m; ++i) nn += c[i] != 0.0;
-    return !sparse(nn, m);
+    return 5 * nn >= 2 * m;
   }
   void dense_tail(int k, double tiny) {
     const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
