@@ -107,6 +107,7 @@ struct DenseLdl {
     colptr.assign(ns + 1, 0);
     ri.clear();
     lv.clear();
+    k0 = ns;
     d.setZero(ns);
     e.setZero(ns);
     negative = 0;
@@ -284,6 +285,7 @@ struct DenseLdl {
       }
       k += kstep;
     }
+    Ld = M.block(k0, k0, n - k0, ns - k0);
     // rows kept at a pivot are positions at that time: later interchanges moved them. Walking
     // back, g maps a position at the time of the pivot to its final one.
     g.resize(n);
@@ -323,6 +325,7 @@ struct DenseLdl {
     return 5 * nn >= 2 * m;
   }
   void dense_tail(int k, double tiny) {
+    k0 = k;
     const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
     if (W.rows() < n) W.resize(n, PANEL);
     while (k < ns) {
@@ -376,7 +379,7 @@ struct DenseLdl {
           d(k) = dk;
           if (dk < 0) ++negative;
           M.col(k).tail(r - 1) = W.col(jc).segment(k + 1, r - 1) / dk;
-          keep_all(k, k + 1);
+          colptr[k + 1] = colptr[k];
         } else {
           const double a = W(k, jc), b = W(k + 1, jc), c = W(k + 1, jc + 1);
           const double det = a * c - b * b;
@@ -394,8 +397,7 @@ struct DenseLdl {
           M.col(k).tail(r2) = W.col(jc).segment(k + 2, r2) * pp + W.col(jc + 1).segment(k + 2, r2) * qq;
           M.col(k + 1).tail(r2) = W.col(jc).segment(k + 2, r2) * qq + W.col(jc + 1).segment(k + 2, r2) * rr;
           M(k + 1, k) = 0.0;
-          keep_all(k, k + 2);
-          keep_all(k + 1, k + 2);
+          colptr[k + 1] = colptr[k + 2] = colptr[k];
         }
         k += kstep;
         jc += kstep;
@@ -410,15 +412,6 @@ struct DenseLdl {
   // L's column c (divided by D) on the rows r0 + nzi, where it is nonzero: kept for the solves
   // as soon as it is final (only later interchanges move its rows), which spares a scan of the
   // front afterwards
-  void keep_all(int c, int r0) {
-    const double* col = &M(0, c);
-    for (int i = r0; i < n; ++i)
-      if (col[i] != 0.0) {
-        ri.push_back(i);
-        lv.push_back(col[i]);
-      }
-    colptr[c + 1] = static_cast<int>(ri.size());
-  }
   void keep(int c, int r0) {
     const double* col = &M(r0, c);
     for (int i : nzi)
@@ -455,24 +448,32 @@ struct DenseLdl {
   IVec colptr, ri;
   std::vector<double> lv;
   IVec swap_kk, swap_kp, g;  // the interchange at each pivot (-1: none), and the map above
+  int k0 = 0;  // the first pivot of the dense rest (dense_tail; ns: none)
+  Mat Ld;      // L's columns [k0, ns) on the rows [k0, n), dense (unit lower triangle on top)
 
   // Forward half of a solve: y[0, ns) <- D^{-1} L11^{-1} P^T x and y[ns, n) <- -L21 L11^{-1} P^T x
   // (to be added to the next block's coupled rows)
   void forward(const Eigen::Ref<const Vec>& x, Vec& y) const {
     y.setZero(n);
     for (int i = 0; i < ns; ++i) y(i) = x(perm[i]);
-    for (int k = 0; k < ns; ++k) {
+    for (int k = 0; k < k0; ++k) {
       const double yk = y(k);
       if (yk == 0.0) continue;
       for (int t = colptr[k]; t < colptr[k + 1]; ++t) y(ri[t]) -= lv[t] * yk;
     }
+    const int t = ns - k0;
+    Ld.topRows(t).triangularView<Eigen::UnitLower>().solveInPlace(y.segment(k0, t));
+    y.tail(n - ns).noalias() -= Ld.bottomRows(n - ns) * y.segment(k0, t);
     auto head = y.head(ns);
     apply_dinv(head);
   }
   // Backward half: y[ns, n) holds the next block's solution at the coupled rows on entry;
   // x <- P L11^{-T} (y[0, ns) - L21^T y[ns, n))
   void backward(Eigen::Ref<Vec> x, Vec& y) const {
-    for (int k = ns - 1; k >= 0; --k) {
+    const int t = ns - k0;
+    y.segment(k0, t).noalias() -= Ld.bottomRows(n - ns).transpose() * y.tail(n - ns);
+    Ld.topRows(t).triangularView<Eigen::UnitLower>().transpose().solveInPlace(y.segment(k0, t));
+    for (int k = k0 - 1; k >= 0; --k) {
       double acc = y(k);
       for (int t = colptr[k]; t < colptr[k + 1]; ++t) acc -= lv[t] * y(ri[t]);
       y(k) = acc;
