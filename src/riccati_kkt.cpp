@@ -29,11 +29,15 @@
 // muscle problem ended 3e-8 apart at IPOPT's tol 1e-9 (MUMPS: 1.5e-12).
 //
 // Cost: a block's front is mostly zeros (a stage's own couplings are sparse; only the previous
-// stages' Schur complement is dense), so a pivot's update of the trailing matrix loops over its
-// column's nonzeros when they are fewer than 3/4 of the rows (DenseLdl::sparse), with the same
-// products as the dense update. The fronts are assembled one at a time in two shared workspaces
-// (the block being factorised and the next, which receives its Schur complement), and each
-// block's factor is then kept compressed, column by column, for the solves.
+// stages' Schur complement is dense), so the block's rows are put in a minimum-degree order on
+// the front's pattern (Solver::order_block: the pivots that create the least fill first, the
+// rows with the dense Schur complement last), and a pivot's update of the trailing matrix loops
+// over its column's nonzeros (DenseLdl::sparse), two consecutive 1x1 pivots in one pass. Once a
+// pivot's column is dense, the rest of the front is factorised by panels (DenseLdl::dense_tail:
+// matrix products instead of rank-1 updates). The fronts are assembled one at a time in two
+// shared workspaces (the block being factorised and the next, which receives its Schur
+// complement); each block's factor is kept for the solves, compressed column by column where
+// it is sparse and dense for the panels' columns.
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -72,11 +76,8 @@ struct DenseLdl {
   std::vector<double> wv;  // scratch: that column's values there (a 2x2: both columns, one after the other)
 
   // A pivot's rank-1 or rank-2 update of the trailing matrix touches only the rows where its
-  // column is nonzero: the stage's own couplings and the previous stages' Schur complement. Below
-  // this share of the trailing rows the update loops over those (index lists); above it, over all
-  // (Eigen's vectorised rank update). Measured on the arm26 and UR5 windows' matrices: 3/4.
-  static bool sparse(int nn, int m) { return 4 * nn < 3 * m; }
-
+  // column is nonzero (the stage's own couplings, the previous stages' Schur complement): the
+  // update loops over those (index lists), until the columns are dense (dense_tail).
   void gather(const double* w1, const double* w2, int m) {
     nzi.clear();
     if (w2 == nullptr) {
@@ -160,75 +161,22 @@ struct DenseLdl {
           double* w = &M(k + 1, k);
           gather(w, nullptr, m);
           const int nn = static_cast<int>(nzi.size());
-          if (sparse(nn, m)) {  // the same products as the dense update, on the column's nonzeros only
-            const double s = -1.0 / dk;
-            const Eigen::Index ld = M.outerStride();
-            double* T = &M(k + 1, k + 1);
-            const int* ix = nzi.data();
-            const double* wp = wv.data();
-            // Pivot k + 1 fused with this one when it is a 1x1 pivot without interchange: its
-            // column is updated first (T's column 0), Bunch-Kaufman's test is run on it, and the
-            // rest of both updates is one rank-2 pass over the trailing matrix (each entry read
-            // and written once for two products).
-            int a0 = 0;
-            if (ix[0] == 0 && k + 1 < ns) {
-              const double wj = wp[0] * s;
-              for (int b = 0; b < nn; ++b) T[ix[b]] += wp[b] * wj;
-              a0 = 1;
-              const double d1 = M(k + 1, k + 1);
-              const double cmax = k + 2 < ns ? M.col(k + 1).segment(k + 2, ns - k - 2).cwiseAbs().maxCoeff() : 0.0;
-              if (std::abs(d1) > tiny && std::abs(d1) >= alpha * cmax && m > 1) {
-                d(k + 1) = d1;
-                if (d1 < 0) ++negative;
-                M(k + 1, k) /= dk;
-                const int m2 = m - 1;
-                double* w1 = &M(k + 2, k);
-                double* w2 = &M(k + 2, k + 1);
-                gather(w1, w2, m2);
-                const int n2 = static_cast<int>(nzi.size());
-                if (sparse(n2, m2)) {
-                  double* T2 = &M(k + 2, k + 2);
-                  const int* jx = nzi.data();
-                  const double* p1 = wv.data();
-                  const double* p2 = wv.data() + n2;
-                  const double r0 = 1.0 / dk, r1 = 1.0 / d1;
-                  for (int a = 0; a < n2; ++a) {
-                    const double u1 = r0 * p1[a], u2 = r1 * p2[a];
-                    double* col = T2 + jx[a] * ld;
-                    for (int b = a; b < n2; ++b) col[jx[b]] -= p1[b] * u1 + p2[b] * u2;
-                  }
-                } else {
-                  auto T2 = M.bottomRightCorner(m2, m2).selfadjointView<Eigen::Lower>();
-                  T2.rankUpdate(M.col(k).tail(m2), -1.0 / dk);
-                  T2.rankUpdate(M.col(k + 1).tail(m2), -1.0 / d1);
-                }
-                for (int a = 0; a < n2; ++a) {
-                  w1[nzi[a]] /= dk;
-                  w2[nzi[a]] /= d1;
-                }
-                if (M(k + 1, k) != 0.0) {
-                  ri.push_back(k + 1);
-                  lv.push_back(M(k + 1, k));
-                }
-                keep(k, k + 2);
-                keep(k + 1, k + 2);
-                k += 2;
-                continue;
-              }
-            }
-            for (int a = a0; a < nn; ++a) {
-              const double wj = wp[a] * s;
-              double* col = T + ix[a] * ld;
-              for (int b = a; b < nn; ++b) col[ix[b]] += wp[b] * wj;
-            }
-            for (int a = 0; a < nn; ++a) w[ix[a]] /= dk;
-          } else {
-            M.bottomRightCorner(m, m).selfadjointView<Eigen::Lower>().rankUpdate(M.col(k).tail(m), -1.0 / dk);
-            M.col(k).tail(m) /= dk;
+          // the rank-1 update on the column's nonzeros only
+          const double s = -1.0 / dk;
+          const Eigen::Index ld = M.outerStride();
+          double* T = &M(k + 1, k + 1);
+          const int* ix = nzi.data();
+          const double* wp = wv.data();
+          for (int a = 0; a < nn; ++a) {
+            const double wj = wp[a] * s;
+            double* col = T + ix[a] * ld;
+            for (int b = a; b < nn; ++b) col[ix[b]] += wp[b] * wj;
           }
+          for (int a = 0; a < nn; ++a) w[ix[a]] /= dk;
+          keep(k, k + 1);
+        } else {
+          colptr[k + 1] = static_cast<int>(ri.size());
         }
-        if (m > 0) keep(k, k + 1);
-        else colptr[k + 1] = static_cast<int>(ri.size());
       } else {
         const double a = M(k, k), b = M(k + 1, k), c = M(k + 1, k + 1);
         const double det = a * c - b * b;
@@ -249,24 +197,15 @@ struct DenseLdl {
           double* w2 = &M(k + 2, k + 1);
           gather(w1, w2, m2);
           const int nn = static_cast<int>(nzi.size());
-          if (sparse(nn, m2)) {
-            const Eigen::Index ld = M.outerStride();
-            double* T = &M(k + 2, k + 2);
-            const int* ix = nzi.data();
-            const double* p1 = wv.data();
-            const double* p2 = wv.data() + nn;
-            for (int a2 = 0; a2 < nn; ++a2) {
-              const double u1 = pp * p1[a2] + qq * p2[a2], u2 = qq * p1[a2] + rr * p2[a2];
-              double* col = T + ix[a2] * ld;
-              for (int b2 = a2; b2 < nn; ++b2) col[ix[b2]] -= p1[b2] * u1 + p2[b2] * u2;
-            }
-          } else {
-            auto T = M.bottomRightCorner(m2, m2).selfadjointView<Eigen::Lower>();
-            auto c1 = M.col(k).tail(m2);
-            auto c2 = M.col(k + 1).tail(m2);
-            T.rankUpdate(c1, -pp);
-            T.rankUpdate(c2, -rr);
-            T.rankUpdate(c1, c2, -qq);
+          const Eigen::Index ld = M.outerStride();
+          double* T = &M(k + 2, k + 2);
+          const int* ix = nzi.data();
+          const double* p1 = wv.data();
+          const double* p2 = wv.data() + nn;
+          for (int a2 = 0; a2 < nn; ++a2) {
+            const double u1 = pp * p1[a2] + qq * p2[a2], u2 = qq * p1[a2] + rr * p2[a2];
+            double* col = T + ix[a2] * ld;
+            for (int b2 = a2; b2 < nn; ++b2) col[ix[b2]] -= p1[b2] * u1 + p2[b2] * u2;
           }
           for (int a2 = 0; a2 < nn; ++a2) {
             const int i = nzi[a2];
@@ -274,14 +213,12 @@ struct DenseLdl {
             w1[i] = x1 * pp + x2 * qq;
             w2[i] = x1 * qq + x2 * rr;
           }
-        }
-        M(k + 1, k) = 0.0;
-        if (m2 > 0) {
           keep(k, k + 2);
           keep(k + 1, k + 2);
         } else {
           colptr[k + 1] = colptr[k + 2] = static_cast<int>(ri.size());
         }
+        M(k + 1, k) = 0.0;
       }
       k += kstep;
     }
