@@ -100,7 +100,7 @@ struct DenseLdl {
   // Partial factorisation of the front [A, C^T; C, 0] (A: ns x ns, lower triangle): pivots
   // chosen in A only; afterwards the rows below hold C P L^{-T} D^{-1} and the bottom-right
   // corner holds -C A^{-1} C^T (the Schur complement's contribution to the next block).
-  void factor(double tiny) {
+  void factor(double tiny, Mat& W) {
     perm.resize(ns);
     for (int i = 0; i < ns; ++i) perm[i] = i;
     swap_kk.assign(ns, -1);
@@ -118,7 +118,7 @@ struct DenseLdl {
     while (k < ns) {
       const int m = n - k - 1;
       if (ns - k >= DENSE_MIN && dense_column(k)) {
-        dense_tail(k, tiny);
+        dense_tail(k, tiny, W);
         break;
       }
       double absakk = std::abs(M(k, k));
@@ -253,7 +253,6 @@ struct DenseLdl {
   // rank-2 update per pivot. The same pivots, the same products, in another order.
   static constexpr int PANEL = 16;
   static constexpr int DENSE_MIN = 8;  // fewer remaining pivots: not worth a panel
-  Mat W;                               // the panel's updated columns (L D), by absolute row
   bool dense_column(int k) const {
     const int m = n - k - 1;
     const double* c = &M(k + 1, k);
@@ -261,7 +260,8 @@ struct DenseLdl {
     for (int i = 0; i < m; ++i) nn += c[i] != 0.0;
     return 5 * nn >= 2 * m;
   }
-  void dense_tail(int k, double tiny) {
+  // W: scratch for the panel's updated columns (L D), by the front's rows
+  void dense_tail(int k, double tiny, Mat& W) {
     k0 = k;
     const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
     if (W.rows() < n) W.resize(n, PANEL);
@@ -502,6 +502,7 @@ struct Solver {
   IVec tri_i, tri_j;      // the triplets' rows and columns (0-based)
   std::vector<double> sc; // the equilibration, per index
   std::vector<double> workspace[2];  // the fronts of two consecutive blocks
+  Mat panel;                         // DenseLdl::dense_tail's scratch
   std::vector<int> block_of;  // position -> block
   Vec rhs;
   int negative = 0;
@@ -732,7 +733,7 @@ struct Solver {
 
   // A block's front: bound to a workspace, zeroed (lower triangle) and assembled from its
   // triplets just before it is factorised. Two workspaces, so that a block's Schur complement goes
-  // into the next block's front; the factor is then kept compressed (DenseLdl::compress).
+  // into the next block's front; the factor is kept apart (DenseLdl::keep, DenseLdl::Ld).
   void assemble(int b, const double* a) {
     DenseLdl& F = blocks[b].ldl;
     F.bind(workspace[b % 2].data());
@@ -766,7 +767,7 @@ struct Solver {
     if (nb > 0) assemble(0, a);
     for (int b = 0; b < nb; ++b) {
       Block& B = blocks[b];
-      B.ldl.factor(tiny);
+      B.ldl.factor(tiny, panel);
       if (B.ldl.singular) {
         singular = true;
         return;
