@@ -149,14 +149,9 @@ struct DenseLdl {
       }
       const int kk = k + kstep - 1;
       if (kp != kk) interchange(k, kk, kp);
+      if (!pivot(k, kstep, M, k, tiny)) return;
       if (kstep == 1) {
-        const double dk = M(k, k);
-        if (!(std::abs(dk) > tiny)) {
-          singular = true;
-          return;
-        }
-        d(k) = dk;
-        if (dk < 0) ++negative;
+        const double dk = d(k);
         if (m > 0) {
           double* w = &M(k + 1, k);
           gather(w, nullptr, m);
@@ -178,17 +173,7 @@ struct DenseLdl {
           colptr[k + 1] = static_cast<int>(ri.size());
         }
       } else {
-        const double a = M(k, k), b = M(k + 1, k), c = M(k + 1, k + 1);
-        const double det = a * c - b * b;
-        if (!(std::abs(det) > tiny)) {
-          singular = true;
-          return;
-        }
-        d(k) = a;
-        d(k + 1) = c;
-        e(k) = b;
-        if (det < 0) negative += 1;
-        else if (a + c < 0) negative += 2;
+        const double a = d(k), b = e(k), c = d(k + 1), det = a * c - b * b;
         const int m2 = n - k - 2;
         if (m2 > 0) {
           // trailing -= W D^{-1} W^T = p w1 w1^T + r w2 w2^T + q (w1 w2^T + w2 w1^T)
@@ -231,6 +216,27 @@ struct DenseLdl {
       for (int t = colptr[c]; t < colptr[c + 1]; ++t) ri[t] = g[ri[t]];
       if (swap_kp[c] >= 0) std::swap(g[swap_kk[c]], g[swap_kp[c]]);
     }
+  }
+
+  // D's block at pivot k, read in X's columns j (and j + 1) from row k, and its negative
+  // eigenvalues; false (and singular) when it is zero
+  template <class X>
+  bool pivot(int k, int kstep, const X& A, int j, double tiny) {
+    const double a = A(k, j), b = kstep == 2 ? A(k + 1, j) : 0.0, c = kstep == 2 ? A(k + 1, j + 1) : 0.0;
+    const double det = kstep == 1 ? a : a * c - b * b;
+    if (!(std::abs(det) > tiny)) {
+      singular = true;
+      return false;
+    }
+    d(k) = a;
+    if (kstep == 1) {
+      negative += a < 0;
+    } else {
+      d(k + 1) = c;
+      e(k) = b;
+      negative += det < 0 ? 1 : (a + c < 0 ? 2 : 0);
+    }
+    return true;
   }
 
   // symmetric interchange of kk and kp in the lower triangle (as LAPACK's dsytf2), at pivot k
@@ -307,28 +313,12 @@ struct DenseLdl {
           interchange(k, kk, kp);
           W.row(kk).head(jc + kstep).swap(W.row(kp).head(jc + kstep));
         }
+        if (!pivot(k, kstep, W, jc, tiny)) return;
         if (kstep == 1) {
-          const double dk = W(k, jc);
-          if (!(std::abs(dk) > tiny)) {
-            singular = true;
-            return;
-          }
-          d(k) = dk;
-          if (dk < 0) ++negative;
-          M.col(k).tail(r - 1) = W.col(jc).segment(k + 1, r - 1) / dk;
+          M.col(k).tail(r - 1) = W.col(jc).segment(k + 1, r - 1) / d(k);
           colptr[k + 1] = colptr[k];
         } else {
-          const double a = W(k, jc), b = W(k + 1, jc), c = W(k + 1, jc + 1);
-          const double det = a * c - b * b;
-          if (!(std::abs(det) > tiny)) {
-            singular = true;
-            return;
-          }
-          d(k) = a;
-          d(k + 1) = c;
-          e(k) = b;
-          if (det < 0) negative += 1;
-          else if (a + c < 0) negative += 2;
+          const double a = d(k), b = e(k), c = d(k + 1), det = a * c - b * b;
           const double pp = c / det, qq = -b / det, rr = a / det;
           const int r2 = r - 2;
           M.col(k).tail(r2) = W.col(jc).segment(k + 2, r2) * pp + W.col(jc + 1).segment(k + 2, r2) * qq;
@@ -525,14 +515,21 @@ struct Solver {
         if (block_of[pos[j]] == b + 1) outer.push_back(pos[j]);
     std::sort(outer.begin(), outer.end());
     outer.erase(std::unique(outer.begin(), outer.end()), outer.end());
-    const int f = s + static_cast<int>(outer.size());
-    std::vector<char> g(static_cast<size_t>(f) * f, 0);
-    IVec deg(f, 0);
+    // the front's graph as bit rows (the updates are unions of rows), degrees among the rows
+    // not eliminated yet
+    const int f = s + static_cast<int>(outer.size()), nw = (f + 63) / 64;
+    std::vector<std::uint64_t> g(static_cast<size_t>(f) * nw, 0), alive(nw, ~std::uint64_t{0}), nb(nw);
+    auto row = [&](int i) { return g.data() + static_cast<size_t>(i) * nw; };
+    auto bit = [](int i) { return std::uint64_t{1} << (i & 63); };
     auto link = [&](int i, int j) {
-      if (i == j || g[i * f + j]) return;
-      g[i * f + j] = g[j * f + i] = 1;
-      ++deg[i];
-      ++deg[j];
+      if (i == j) return;
+      row(i)[j >> 6] |= bit(j);
+      row(j)[i >> 6] |= bit(i);
+    };
+    auto degree = [&](int i) {
+      int c = 0;
+      for (int w = 0; w < nw; ++w) c += __builtin_popcountll(row(i)[w] & alive[w]);
+      return c;
     };
     IVec in;  // the rows that receive the previous block's (dense) Schur complement
     for (int i = 0; i < s; ++i) {
@@ -547,22 +544,25 @@ struct Solver {
     }
     for (size_t a = 0; a < in.size(); ++a)
       for (size_t c = a + 1; c < in.size(); ++c) link(in[a], in[c]);
-    std::vector<char> done(f, 0);
-    IVec nbr, result;
+    IVec deg(s), result;
+    for (int i = 0; i < s; ++i) deg[i] = degree(i);
     for (int step = 0; step < s; ++step) {
       int v = -1;
       for (int i = 0; i < s; ++i)
-        if (!done[i] && (v < 0 || deg[i] < deg[v])) v = i;
-      done[v] = 1;
+        if ((alive[i >> 6] & bit(i)) && (v < 0 || deg[i] < deg[v])) v = i;
+      alive[v >> 6] &= ~bit(v);
       result.push_back(order[B.start + v]);
-      nbr.clear();
-      for (int j = 0; j < f; ++j)
-        if (!done[j] && g[v * f + j]) {
-          nbr.push_back(j);
-          --deg[j];
+      for (int w = 0; w < nw; ++w) nb[w] = row(v)[w] & alive[w];
+      // v's neighbours become a clique (the front's rows keep their rows: they are not pivots)
+      for (int w = 0; w < nw; ++w)
+        for (std::uint64_t m = nb[w]; m != 0; m &= m - 1) {
+          const int a = w * 64 + __builtin_ctzll(m);
+          if (a >= s) break;
+          std::uint64_t* r = row(a);
+          for (int t = 0; t < nw; ++t) r[t] |= nb[t];
+          r[a >> 6] &= ~bit(a);
+          deg[a] = degree(a);
         }
-      for (size_t a = 0; a < nbr.size(); ++a)
-        for (size_t c = a + 1; c < nbr.size(); ++c) link(nbr[a], nbr[c]);
     }
     std::copy(result.begin(), result.end(), order.begin() + B.start);
   }
