@@ -32,8 +32,7 @@
 // stages' Schur complement is dense), so the block's rows are put in a minimum-degree order on
 // the front's pattern (Solver::order_block: the pivots that create the least fill first, the
 // rows with the dense Schur complement last), and a pivot's update of the trailing matrix loops
-// over its column's nonzeros (DenseLdl::sparse), two consecutive 1x1 pivots in one pass. Once a
-// pivot's column is dense, the rest of the front is factorised by panels (DenseLdl::dense_tail:
+// over its column's nonzeros (DenseLdl::gather). Once a pivot's column is dense, the rest of the front is factorised by panels (DenseLdl::dense_tail:
 // matrix products instead of rank-1 updates). The fronts are assembled one at a time in two
 // shared workspaces (the block being factorised and the next, which receives its Schur
 // complement); each block's factor is kept for the solves, compressed column by column where
@@ -218,10 +217,10 @@ struct DenseLdl {
     }
   }
 
-  // D's block at pivot k, read in X's columns j (and j + 1) from row k, and its negative
+  // D's block at pivot k, read in A's column j (and j + 1) from row k, and its negative
   // eigenvalues; false (and singular) when it is zero
-  template <class X>
-  bool pivot(int k, int kstep, const X& A, int j, double tiny) {
+  template <class Matrix>
+  bool pivot(int k, int kstep, const Matrix& A, int j, double tiny) {
     const double a = A(k, j), b = kstep == 2 ? A(k + 1, j) : 0.0, c = kstep == 2 ? A(k + 1, j + 1) : 0.0;
     const double det = kstep == 1 ? a : a * c - b * b;
     if (!(std::abs(det) > tiny)) {
