@@ -32,11 +32,11 @@
 // stages' Schur complement is dense), so the block's rows are put in a minimum-degree order on
 // the front's pattern (Solver::order_block: the pivots that create the least fill first, the
 // rows with the dense Schur complement last), and a pivot's update of the trailing matrix loops
-// over its column's nonzeros (DenseLdl::gather). Once a pivot's column is dense, the rest of the front is factorised by panels (DenseLdl::dense_tail:
-// matrix products instead of rank-1 updates). The fronts are assembled one at a time in two
-// shared workspaces (the block being factorised and the next, which receives its Schur
-// complement); each block's factor is kept for the solves, compressed column by column where
-// it is sparse and dense for the panels' columns.
+// over its column's nonzeros (DenseLdl::gather). Once a pivot's column is dense, the rest of the
+// front is factorised by panels (DenseLdl::dense_tail: matrix products instead of rank-1
+// updates). The fronts are assembled one at a time in two shared workspaces (the block being
+// factorised and the next, which receives its Schur complement); each block's factor is kept
+// for the solves, compressed column by column where it is sparse, dense for the panels' columns.
 #include <Eigen/Dense>
 
 #include <algorithm>
