@@ -29,11 +29,14 @@
 // muscle problem ended 3e-8 apart at IPOPT's tol 1e-9 (MUMPS: 1.5e-12).
 //
 // Cost: a block's front is mostly zeros (a stage's own couplings are sparse; only the previous
-// stages' Schur complement is dense), so a pivot's update of the trailing matrix loops over its
-// column's nonzeros when they are fewer than 3/4 of the rows (DenseLdl::sparse), with the same
-// products as the dense update. The fronts are assembled one at a time in two shared workspaces
-// (the block being factorised and the next, which receives its Schur complement), and each
-// block's factor is then kept compressed, column by column, for the solves.
+// stages' Schur complement is dense), so the block's rows are put in a minimum-degree order on
+// the front's pattern (Solver::order_block: the pivots that create the least fill first, the
+// rows with the dense Schur complement last), and a pivot's update of the trailing matrix loops
+// over its column's nonzeros (DenseLdl::gather). Once a pivot's column is dense, the rest of the
+// front is factorised by panels (DenseLdl::dense_tail: matrix products instead of rank-1
+// updates). The fronts are assembled one at a time in two shared workspaces (the block being
+// factorised and the next, which receives its Schur complement); each block's factor is kept
+// for the solves, compressed column by column where it is sparse, dense for the panels' columns.
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -72,11 +75,8 @@ struct DenseLdl {
   std::vector<double> wv;  // scratch: that column's values there (a 2x2: both columns, one after the other)
 
   // A pivot's rank-1 or rank-2 update of the trailing matrix touches only the rows where its
-  // column is nonzero: the stage's own couplings and the previous stages' Schur complement. Below
-  // this share of the trailing rows the update loops over those (index lists); above it, over all
-  // (Eigen's vectorised rank update). Measured on the arm26 and UR5 windows' matrices: 3/4.
-  static bool sparse(int nn, int m) { return 4 * nn < 3 * m; }
-
+  // column is nonzero (the stage's own couplings, the previous stages' Schur complement): the
+  // update loops over those (index lists), until the columns are dense (dense_tail).
   void gather(const double* w1, const double* w2, int m) {
     nzi.clear();
     if (w2 == nullptr) {
@@ -99,9 +99,15 @@ struct DenseLdl {
   // Partial factorisation of the front [A, C^T; C, 0] (A: ns x ns, lower triangle): pivots
   // chosen in A only; afterwards the rows below hold C P L^{-T} D^{-1} and the bottom-right
   // corner holds -C A^{-1} C^T (the Schur complement's contribution to the next block).
-  void factor(double tiny) {
+  void factor(double tiny, Mat& W) {
     perm.resize(ns);
     for (int i = 0; i < ns; ++i) perm[i] = i;
+    swap_kk.assign(ns, -1);
+    swap_kp.assign(ns, -1);
+    colptr.assign(ns + 1, 0);
+    ri.clear();
+    lv.clear();
+    k0 = ns;
     d.setZero(ns);
     e.setZero(ns);
     negative = 0;
@@ -110,6 +116,10 @@ struct DenseLdl {
     int k = 0;
     while (k < ns) {
       const int m = n - k - 1;
+      if (ns - k >= DENSE_MIN && dense_column(k)) {
+        dense_tail(k, tiny, W);
+        break;
+      }
       double absakk = std::abs(M(k, k));
       int imax = k;
       double colmax = 0.0;
@@ -137,54 +147,32 @@ struct DenseLdl {
         }
       }
       const int kk = k + kstep - 1;
-      if (kp != kk) {  // symmetric interchange in the lower triangle (as LAPACK's dsytf2)
-        M.row(kk).head(kk).swap(M.row(kp).head(kk));
-        if (kp + 1 < n) M.col(kk).tail(n - kp - 1).swap(M.col(kp).tail(n - kp - 1));
-        for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
-        std::swap(M(kk, kk), M(kp, kp));
-        std::swap(perm[kk], perm[kp]);
-      }
+      if (kp != kk) interchange(k, kk, kp);
+      if (!pivot(k, kstep, M, k, tiny)) return;
       if (kstep == 1) {
-        const double dk = M(k, k);
-        if (!(std::abs(dk) > tiny)) {
-          singular = true;
-          return;
-        }
-        d(k) = dk;
-        if (dk < 0) ++negative;
+        const double dk = d(k);
         if (m > 0) {
           double* w = &M(k + 1, k);
           gather(w, nullptr, m);
           const int nn = static_cast<int>(nzi.size());
-          if (sparse(nn, m)) {  // the same products as the dense update, on the column's nonzeros only
-            const double s = -1.0 / dk;
-            const Eigen::Index ld = M.outerStride();
-            double* T = &M(k + 1, k + 1);
-            const int* ix = nzi.data();
-            const double* wp = wv.data();
-            for (int a = 0; a < nn; ++a) {
-              const double wj = wp[a] * s;
-              double* col = T + ix[a] * ld;
-              for (int b = a; b < nn; ++b) col[ix[b]] += wp[b] * wj;
-            }
-            for (int a = 0; a < nn; ++a) w[ix[a]] /= dk;
-          } else {
-            M.bottomRightCorner(m, m).selfadjointView<Eigen::Lower>().rankUpdate(M.col(k).tail(m), -1.0 / dk);
-            M.col(k).tail(m) /= dk;
+          // the rank-1 update on the column's nonzeros only
+          const double s = -1.0 / dk;
+          const Eigen::Index ld = M.outerStride();
+          double* T = &M(k + 1, k + 1);
+          const int* ix = nzi.data();
+          const double* wp = wv.data();
+          for (int a = 0; a < nn; ++a) {
+            const double wj = wp[a] * s;
+            double* col = T + ix[a] * ld;
+            for (int b = a; b < nn; ++b) col[ix[b]] += wp[b] * wj;
           }
+          for (int a = 0; a < nn; ++a) w[ix[a]] /= dk;
+          keep(k, k + 1);
+        } else {
+          colptr[k + 1] = static_cast<int>(ri.size());
         }
       } else {
-        const double a = M(k, k), b = M(k + 1, k), c = M(k + 1, k + 1);
-        const double det = a * c - b * b;
-        if (!(std::abs(det) > tiny)) {
-          singular = true;
-          return;
-        }
-        d(k) = a;
-        d(k + 1) = c;
-        e(k) = b;
-        if (det < 0) negative += 1;
-        else if (a + c < 0) negative += 2;
+        const double a = d(k), b = e(k), c = d(k + 1), det = a * c - b * b;
         const int m2 = n - k - 2;
         if (m2 > 0) {
           // trailing -= W D^{-1} W^T = p w1 w1^T + r w2 w2^T + q (w1 w2^T + w2 w1^T)
@@ -193,24 +181,15 @@ struct DenseLdl {
           double* w2 = &M(k + 2, k + 1);
           gather(w1, w2, m2);
           const int nn = static_cast<int>(nzi.size());
-          if (sparse(nn, m2)) {
-            const Eigen::Index ld = M.outerStride();
-            double* T = &M(k + 2, k + 2);
-            const int* ix = nzi.data();
-            const double* p1 = wv.data();
-            const double* p2 = wv.data() + nn;
-            for (int a2 = 0; a2 < nn; ++a2) {
-              const double u1 = pp * p1[a2] + qq * p2[a2], u2 = qq * p1[a2] + rr * p2[a2];
-              double* col = T + ix[a2] * ld;
-              for (int b2 = a2; b2 < nn; ++b2) col[ix[b2]] -= p1[b2] * u1 + p2[b2] * u2;
-            }
-          } else {
-            auto T = M.bottomRightCorner(m2, m2).selfadjointView<Eigen::Lower>();
-            auto c1 = M.col(k).tail(m2);
-            auto c2 = M.col(k + 1).tail(m2);
-            T.rankUpdate(c1, -pp);
-            T.rankUpdate(c2, -rr);
-            T.rankUpdate(c1, c2, -qq);
+          const Eigen::Index ld = M.outerStride();
+          double* T = &M(k + 2, k + 2);
+          const int* ix = nzi.data();
+          const double* p1 = wv.data();
+          const double* p2 = wv.data() + nn;
+          for (int a2 = 0; a2 < nn; ++a2) {
+            const double u1 = pp * p1[a2] + qq * p2[a2], u2 = qq * p1[a2] + rr * p2[a2];
+            double* col = T + ix[a2] * ld;
+            for (int b2 = a2; b2 < nn; ++b2) col[ix[b2]] -= p1[b2] * u1 + p2[b2] * u2;
           }
           for (int a2 = 0; a2 < nn; ++a2) {
             const int i = nzi[a2];
@@ -218,11 +197,155 @@ struct DenseLdl {
             w1[i] = x1 * pp + x2 * qq;
             w2[i] = x1 * qq + x2 * rr;
           }
+          keep(k, k + 2);
+          keep(k + 1, k + 2);
+        } else {
+          colptr[k + 1] = colptr[k + 2] = static_cast<int>(ri.size());
         }
         M(k + 1, k) = 0.0;
       }
       k += kstep;
     }
+    Ld = M.block(k0, k0, n - k0, ns - k0);
+    // rows kept at a pivot are positions at that time: later interchanges moved them. Walking
+    // back, g maps a position at the time of the pivot to its final one.
+    g.resize(n);
+    for (int i = 0; i < n; ++i) g[i] = i;
+    for (int c = ns - 1; c >= 0; --c) {
+      for (int t = colptr[c]; t < colptr[c + 1]; ++t) ri[t] = g[ri[t]];
+      if (swap_kp[c] >= 0) std::swap(g[swap_kk[c]], g[swap_kp[c]]);
+    }
+  }
+
+  // D's block at pivot k, read in A's column j (and j + 1) from row k, and its negative
+  // eigenvalues; false (and singular) when it is zero
+  template <class Matrix>
+  bool pivot(int k, int kstep, const Matrix& A, int j, double tiny) {
+    const double a = A(k, j), b = kstep == 2 ? A(k + 1, j) : 0.0, c = kstep == 2 ? A(k + 1, j + 1) : 0.0;
+    const double det = kstep == 1 ? a : a * c - b * b;
+    if (!(std::abs(det) > tiny)) {
+      singular = true;
+      return false;
+    }
+    d(k) = a;
+    if (kstep == 1) {
+      negative += a < 0;
+    } else {
+      d(k + 1) = c;
+      e(k) = b;
+      negative += det < 0 ? 1 : (a + c < 0 ? 2 : 0);
+    }
+    return true;
+  }
+
+  // symmetric interchange of kk and kp in the lower triangle (as LAPACK's dsytf2), at pivot k
+  void interchange(int k, int kk, int kp) {
+    M.row(kk).head(kk).swap(M.row(kp).head(kk));
+    if (kp + 1 < n) M.col(kk).tail(n - kp - 1).swap(M.col(kp).tail(n - kp - 1));
+    for (int j = kk + 1; j < kp; ++j) std::swap(M(j, kk), M(kp, j));
+    std::swap(M(kk, kk), M(kp, kp));
+    std::swap(perm[kk], perm[kp]);
+    swap_kk[k] = kk;
+    swap_kp[k] = kp;
+  }
+
+  // The dense rest of a front: once a pivot's column is nonzero on 2/5 of the trailing rows
+  // (the minimum-degree order leaves the rows with the dense Schur complement last), the
+  // remaining pivots are factorised by panels of PANEL columns (as LAPACK's dlasyf): within a
+  // panel each column is brought up to date only when it is reached (one matrix-vector product
+  // with the panel's columns), Bunch-Kaufman chooses the pivot on it as above, and the trailing
+  // matrix receives the panel's updates at once (one matrix product) instead of one rank-1 or
+  // rank-2 update per pivot. The same pivots, the same products, in another order.
+  static constexpr int PANEL = 16;
+  static constexpr int DENSE_MIN = 8;  // fewer remaining pivots: not worth a panel
+  bool dense_column(int k) const {
+    const int m = n - k - 1;
+    const double* c = &M(k + 1, k);
+    int nn = 0;
+    for (int i = 0; i < m; ++i) nn += c[i] != 0.0;
+    return 5 * nn >= 2 * m;
+  }
+  // W: scratch for the panel's updated columns (L D), by the front's rows
+  void dense_tail(int k, double tiny, Mat& W) {
+    k0 = k;
+    const double alpha = (1.0 + std::sqrt(17.0)) / 8.0;
+    if (W.rows() < n) W.resize(n, PANEL);
+    while (k < ns) {
+      const int p0 = k;
+      int jc = 0;
+      while (k < ns && jc < PANEL - 1) {
+        const int r = n - k;
+        // column k up to date: its stored (lower-triangle) entries minus the panel's updates
+        W.col(jc).segment(k, r) = M.col(k).tail(r) - M.block(k, p0, r, jc) * W.row(k).head(jc).transpose();
+        double absakk = std::abs(W(k, jc)), colmax = 0.0;
+        int imax = k;
+        if (ns - k - 1 > 0) {
+          Eigen::Index t;
+          colmax = W.col(jc).segment(k + 1, ns - k - 1).cwiseAbs().maxCoeff(&t);
+          imax = k + 1 + static_cast<int>(t);
+        }
+        if (!(std::max(absakk, colmax) > tiny)) {
+          singular = true;
+          return;
+        }
+        int kstep = 1, kp = k;
+        if (absakk < alpha * colmax) {
+          // column imax up to date (row imax of the lower triangle, then its column)
+          for (int i = k; i < imax; ++i) W(i, jc + 1) = M(imax, i);
+          W.col(jc + 1).segment(imax, n - imax) = M.col(imax).tail(n - imax);
+          W.col(jc + 1).segment(k, r) -= M.block(k, p0, r, jc) * W.row(imax).head(jc).transpose();
+          double rowmax = 0.0;
+          for (int i = k; i < ns; ++i)
+            if (i != imax) rowmax = std::max(rowmax, std::abs(W(i, jc + 1)));
+          if (absakk * rowmax >= alpha * colmax * colmax) {
+            kp = k;
+          } else if (std::abs(W(imax, jc + 1)) >= alpha * rowmax) {
+            kp = imax;
+            W.col(jc).segment(k, r) = W.col(jc + 1).segment(k, r);
+          } else {
+            kp = imax;
+            kstep = 2;
+          }
+        }
+        const int kk = k + kstep - 1;
+        if (kp != kk) {
+          interchange(k, kk, kp);
+          W.row(kk).head(jc + kstep).swap(W.row(kp).head(jc + kstep));
+        }
+        if (!pivot(k, kstep, W, jc, tiny)) return;
+        if (kstep == 1) {
+          M.col(k).tail(r - 1) = W.col(jc).segment(k + 1, r - 1) / d(k);
+          colptr[k + 1] = colptr[k];
+        } else {
+          const double a = d(k), b = e(k), c = d(k + 1), det = a * c - b * b;
+          const double pp = c / det, qq = -b / det, rr = a / det;
+          const int r2 = r - 2;
+          M.col(k).tail(r2) = W.col(jc).segment(k + 2, r2) * pp + W.col(jc + 1).segment(k + 2, r2) * qq;
+          M.col(k + 1).tail(r2) = W.col(jc).segment(k + 2, r2) * qq + W.col(jc + 1).segment(k + 2, r2) * rr;
+          M(k + 1, k) = 0.0;
+          colptr[k + 1] = colptr[k + 2] = colptr[k];
+        }
+        k += kstep;
+        jc += kstep;
+      }
+      // the panel's updates of the trailing matrix (the next block's coupled rows included)
+      const int r = n - k;
+      if (r > 0)
+        M.bottomRightCorner(r, r).triangularView<Eigen::Lower>() -= M.block(k, p0, r, jc) * W.block(k, 0, r, jc).transpose();
+    }
+  }
+
+  // L's column c (divided by D) on the rows r0 + nzi, where it is nonzero: kept for the solves
+  // as soon as it is final (only later interchanges move its rows), which spares a scan of the
+  // front afterwards
+  void keep(int c, int r0) {
+    const double* col = &M(r0, c);
+    for (int i : nzi)
+      if (col[i] != 0.0) {
+        ri.push_back(r0 + i);
+        lv.push_back(col[i]);
+      }
+    colptr[c + 1] = static_cast<int>(ri.size());
   }
 
   // Y <- D^{-1} Y (rows in pivoted order)
@@ -246,42 +369,37 @@ struct DenseLdl {
 
   void bind(double* storage) { new (&M) Eigen::Map<Mat>(storage, n, n); }
 
-  // After the factorisation: L's nonzeros column by column (below the diagonal, the next block's
-  // coupled rows included), for the solves; the front's storage is then free for the next block.
+  // L's nonzeros column by column (below the diagonal, the next block's coupled rows included,
+  // rows in final positions), for the solves: the front's storage is free for the next block
   IVec colptr, ri;
   std::vector<double> lv;
-  void compress() {
-    colptr.assign(ns + 1, 0);
-    ri.clear();
-    lv.clear();
-    for (int k = 0; k < ns; ++k) {
-      const double* c = &M(0, k);
-      for (int i = k + 1; i < n; ++i)
-        if (c[i] != 0.0) {
-          ri.push_back(i);
-          lv.push_back(c[i]);
-        }
-      colptr[k + 1] = static_cast<int>(ri.size());
-    }
-  }
+  IVec swap_kk, swap_kp, g;  // the interchange at each pivot (-1: none), and the map above
+  int k0 = 0;  // the first pivot of the dense rest (dense_tail; ns: none)
+  Mat Ld;      // L's columns [k0, ns) on the rows [k0, n), dense (unit lower triangle on top)
 
   // Forward half of a solve: y[0, ns) <- D^{-1} L11^{-1} P^T x and y[ns, n) <- -L21 L11^{-1} P^T x
   // (to be added to the next block's coupled rows)
   void forward(const Eigen::Ref<const Vec>& x, Vec& y) const {
     y.setZero(n);
     for (int i = 0; i < ns; ++i) y(i) = x(perm[i]);
-    for (int k = 0; k < ns; ++k) {
+    for (int k = 0; k < k0; ++k) {
       const double yk = y(k);
       if (yk == 0.0) continue;
       for (int t = colptr[k]; t < colptr[k + 1]; ++t) y(ri[t]) -= lv[t] * yk;
     }
+    const int t = ns - k0;
+    Ld.topRows(t).triangularView<Eigen::UnitLower>().solveInPlace(y.segment(k0, t));
+    y.tail(n - ns).noalias() -= Ld.bottomRows(n - ns) * y.segment(k0, t);
     auto head = y.head(ns);
     apply_dinv(head);
   }
   // Backward half: y[ns, n) holds the next block's solution at the coupled rows on entry;
   // x <- P L11^{-T} (y[0, ns) - L21^T y[ns, n))
   void backward(Eigen::Ref<Vec> x, Vec& y) const {
-    for (int k = ns - 1; k >= 0; --k) {
+    const int t = ns - k0;
+    y.segment(k0, t).noalias() -= Ld.bottomRows(n - ns).transpose() * y.tail(n - ns);
+    Ld.topRows(t).triangularView<Eigen::UnitLower>().transpose().solveInPlace(y.segment(k0, t));
+    for (int k = k0 - 1; k >= 0; --k) {
       double acc = y(k);
       for (int t = colptr[k]; t < colptr[k + 1]; ++t) acc -= lv[t] * y(ri[t]);
       y(k) = acc;
@@ -373,12 +491,80 @@ struct Solver {
   IVec tri_i, tri_j;      // the triplets' rows and columns (0-based)
   std::vector<double> sc; // the equilibration, per index
   std::vector<double> workspace[2];  // the fronts of two consecutive blocks
+  Mat panel;                         // DenseLdl::dense_tail's scratch
   std::vector<int> block_of;  // position -> block
   Vec rhs;
   int negative = 0;
   bool singular = false;
   int max_block = 0;
   const void* ikeep = nullptr;
+
+  // A fill-reducing order inside block b (minimum degree): the block's front holds its own
+  // couplings, the previous block's Schur complement (dense on the block's rows that couple with
+  // the previous block) and the rows of the next block it couples with, which stay last. The
+  // pivots that create the least fill go first; ties keep the breadth-first order. Measured (the
+  // dumped matrices' patterns, the front's symbolic updates): the UR5 window's 54 M multiply-adds
+  // per factorisation fall to 26 M, arm26's 2.1 M to 1.0 M.
+  void order_block(int b, const std::vector<std::vector<int>>& adj) {
+    const Block& B = blocks[b];
+    const int s = B.size;
+    IVec outer;  // the next block's rows coupled with this one (positions): front indices s, s + 1, ...
+    for (int i = 0; i < s; ++i)
+      for (int j : adj[order[B.start + i]])
+        if (block_of[pos[j]] == b + 1) outer.push_back(pos[j]);
+    std::sort(outer.begin(), outer.end());
+    outer.erase(std::unique(outer.begin(), outer.end()), outer.end());
+    // the front's graph as bit rows (the updates are unions of rows), degrees among the rows
+    // not eliminated yet
+    const int f = s + static_cast<int>(outer.size()), nw = (f + 63) / 64;
+    std::vector<std::uint64_t> g(static_cast<size_t>(f) * nw, 0), alive(nw, ~std::uint64_t{0}), nb(nw);
+    auto row = [&](int i) { return g.data() + static_cast<size_t>(i) * nw; };
+    auto bit = [](int i) { return std::uint64_t{1} << (i & 63); };
+    auto link = [&](int i, int j) {
+      if (i == j) return;
+      row(i)[j >> 6] |= bit(j);
+      row(j)[i >> 6] |= bit(i);
+    };
+    auto degree = [&](int i) {
+      int c = 0;
+      for (int w = 0; w < nw; ++w) c += __builtin_popcountll(row(i)[w] & alive[w]);
+      return c;
+    };
+    IVec in;  // the rows that receive the previous block's (dense) Schur complement
+    for (int i = 0; i < s; ++i) {
+      bool coupled = false;
+      for (int j : adj[order[B.start + i]]) {
+        const int q = pos[j], bj = block_of[q];
+        if (bj == b) link(i, q - B.start);
+        else if (bj == b + 1) link(i, s + static_cast<int>(std::lower_bound(outer.begin(), outer.end(), q) - outer.begin()));
+        else if (bj == b - 1) coupled = true;
+      }
+      if (coupled) in.push_back(i);
+    }
+    for (size_t a = 0; a < in.size(); ++a)
+      for (size_t c = a + 1; c < in.size(); ++c) link(in[a], in[c]);
+    IVec deg(s), result;
+    for (int i = 0; i < s; ++i) deg[i] = degree(i);
+    for (int step = 0; step < s; ++step) {
+      int v = -1;
+      for (int i = 0; i < s; ++i)
+        if ((alive[i >> 6] & bit(i)) && (v < 0 || deg[i] < deg[v])) v = i;
+      alive[v >> 6] &= ~bit(v);
+      result.push_back(order[B.start + v]);
+      for (int w = 0; w < nw; ++w) nb[w] = row(v)[w] & alive[w];
+      // v's neighbours become a clique (the front's rows keep their rows: they are not pivots)
+      for (int w = 0; w < nw; ++w)
+        for (std::uint64_t m = nb[w]; m != 0; m &= m - 1) {
+          const int a = w * 64 + __builtin_ctzll(m);
+          if (a >= s) break;
+          std::uint64_t* r = row(a);
+          for (int t = 0; t < nw; ++t) r[t] |= nb[t];
+          r[a >> 6] &= ~bit(a);
+          deg[a] = degree(a);
+        }
+    }
+    std::copy(result.begin(), result.end(), order.begin() + B.start);
+  }
 
   // Returns 0 or an MA27-style error code.
   int analyse(int n_, int nz_, const int* irn, const int* jcn) {
@@ -494,6 +680,8 @@ struct Solver {
       max_block = std::max(max_block, blocks[b].size);
     }
     if (max_block > MAX_BLOCK) return -2;
+    for (int b = 0; b < nb; ++b) order_block(b, adj);
+    for (int q = 0; q < n; ++q) pos[order[q]] = q;
     // coupling rows of each block in the next one
     for (int b = 0; b + 1 < nb; ++b) {
       Block& B = blocks[b];
@@ -544,7 +732,7 @@ struct Solver {
 
   // A block's front: bound to a workspace, zeroed (lower triangle) and assembled from its
   // triplets just before it is factorised. Two workspaces, so that a block's Schur complement goes
-  // into the next block's front; the factor is then kept compressed (DenseLdl::compress).
+  // into the next block's front; the factor is kept apart (DenseLdl::keep, DenseLdl::Ld).
   void assemble(int b, const double* a) {
     DenseLdl& F = blocks[b].ldl;
     F.bind(workspace[b % 2].data());
@@ -578,7 +766,7 @@ struct Solver {
     if (nb > 0) assemble(0, a);
     for (int b = 0; b < nb; ++b) {
       Block& B = blocks[b];
-      B.ldl.factor(tiny);
+      B.ldl.factor(tiny, panel);
       if (B.ldl.singular) {
         singular = true;
         return;
@@ -591,7 +779,6 @@ struct Solver {
         for (int j = 0; j < r; ++j)
           for (int i = j; i < r; ++i) N(B.rows[i], B.rows[j]) += B.ldl.M(s + i, s + j);  // rows ascending: lower
       }
-      B.ldl.compress();
     }
   }
 

@@ -126,7 +126,8 @@ def random_kkt(rng, stages=12, nx=4, nu=2, hessian_scale=1.0, group=0):
 @pytest.mark.parametrize("seed", range(10))
 def test_inertia_is_the_eigenvalue_count(seed):
     """Seeds 6-9: stages of independent state groups, whose pivot columns are mostly zero: their
-    updates take the sparse path (index lists), the others the dense one."""
+    updates take the sparse path (index lists) longer; the dense stages go to the panels
+    (DenseLdl::dense_tail) at once."""
     lib = ctypes.CDLL(str(riccati_library()))
     rng = np.random.default_rng(seed)
     if seed < 6:
