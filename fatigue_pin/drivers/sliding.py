@@ -464,13 +464,18 @@ class SlidingHorizon:
     def _window_line(self, index: int, first_cycle: int, sol: OcpSolution, limit: int | None, max_mf: float,
                      budget: WindowBudget | None = None, within: bool = False) -> str:
         """The progress line of a solved window; with a budget, its largest row (1: the limit
-        at the task's end) and whether the window kept it."""
+        at the task's end) and whether the window kept it; for a failed window, why
+        (:func:`~fatigue_pin.ocp.solver.failure_kind`) and its last iterate's constraint violation:
+        ``not-converged`` at a small one is a motion the solver did not show optimal, not an arm
+        that can do no more (docs/muscles.md, "To exhaustion")."""
         K, L = self.sliding.window, self.ocp.layout
         note = ""
+        if not sol.success and sol.nlp.kind:
+            note = f"  ({sol.nlp.kind}: constraint violation {sol.nlp.constraint_violation:.1e} at the last iterate)"
         if budget is not None:
             before = np.vstack([budget.past, sol.x[:, L.m]])  # the node n before each node 1..K n
             rows = [E_last @ sol.x[i, L.m] + E_before @ before[i - 1] for i, (E_last, E_before) in enumerate(budget.rows, 1)]
-            note = f"  budget {np.max(rows):.3f}" + ("" if within else " (failed within it: solved without)")
+            note += f"  budget {np.max(rows):.3f}" + ("" if within else " (failed within it: solved without)")
         return (f"window {index:3d} (cycles {first_cycle + 1}-{first_cycle + K}): "
                 f"{'converged' if sol.success else 'FAILED   '} {sol.iterations:4d} it {sol.wall_time_s:6.2f} s"
                 f" (real-time factor {sol.wall_time_s / self._advanced_s:.2f})"

@@ -3,6 +3,7 @@ fatigue_pin 0.1 (main at 034cfcc, before problems became data)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -86,6 +87,9 @@ def test_the_demo_ends_on_its_count_and_why_the_arm_stopped(tmp_path, monkeypatc
     demo(tmp_path / "demo", progress=lines.append)
     run_lines = [line for line in lines if line.startswith("window ")]
     assert run_lines[-1].startswith("window   2 (cycles 3-5): FAILED")  # the solver's line, not the last one
+    # why it failed, and how near its last iterate was to a motion
+    assert re.search(r"  \((infeasible|infeasible-growing|not-converged|numerical): constraint violation \d\.\de[+-]\d+ "
+                     r"at the last iterate\)", run_lines[-1]), run_lines[-1]
     assert lines[-1].startswith("4 repetitions: then the arm was too tired to go on: the solver found no motion for the next 3 "
                                 "cycles (3-5) from the end of cycle 2 (window 2: "), lines[-1]
     assert "FAILED" not in lines[-1] and lines[-1].endswith(" s of solving")
