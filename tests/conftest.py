@@ -6,7 +6,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 import pytest
 
-from fatigue_pin.io.results import WINDOW_DTYPE, RunResult, torque_limits_at_cycle_ends
+from fatigue_pin.io.results import WINDOW_DTYPE, RunResult
 
 from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.synthetic import synthetic_run

@@ -24,7 +24,6 @@ from fatigue_pin.fatigue.endurance_report import format_comparison, run_enduranc
 from fatigue_pin.core.errors import ParameterError
 from fatigue_pin.fatigue.michaud import MichaudFatigue
 from fatigue_pin.fatigue.models import XiaFatigue
-from fatigue_pin.fatigue.presets import preset
 
 ELBOW = XiaFatigue(LD=10, LR=10, F=0.00912, R=0.00094)
 

@@ -9,11 +9,9 @@ import pytest
 from conftest import make_run
 from fatigue_pin.io.results import (
     ResultFileError,
-    RunResult,
     list_runs,
     read_run,
     read_search,
-    torque_limits_at_cycle_ends,
     write_run,
     write_search,
 )

@@ -12,7 +12,6 @@ import pytest
 from fatigue_pin.cli.main import main
 from fatigue_pin.core.errors import FatiguePinError, TaskError
 from fatigue_pin.robot.kinematics import frame_placement
-from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.io.results import read_run
 from fatigue_pin.io.study import Study, StudyError, run_study
 from fatigue_pin.ocp.task import FrameOrientation, FramePlane, FrameTarget, Task

@@ -14,7 +14,7 @@ import pytest
 from conftest import (ARM26_OSIM, ARM26_SHOULDER_WRAPS, dumbbell_payload, muscle_curl, opensim_geometry_rows, osim_variant,
                       osim_without_muscles, two_muscle_file)
 from fatigue_pin.cli.main import main
-from fatigue_pin.core.errors import FatiguePinError, ModelError
+from fatigue_pin.core.errors import ModelError
 from fatigue_pin.io.study import Study, StudyError
 from fatigue_pin.muscles.files import load_muscles, read_muscles
 from fatigue_pin.muscles.geometry import MuscleGeometry

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import HALVES, TERMS, make_curl_run
-from fatigue_pin.io.results import WINDOW_DTYPE, ResultFileError, RunResult, read_run, write_run
+from conftest import make_curl_run
+from fatigue_pin.io.results import ResultFileError, RunResult, read_run, write_run
 
 @pytest.fixture
 def run(tmp_path: Path) -> RunResult:
