@@ -22,7 +22,7 @@ run (the guess of a window only depends on the previous window's stored solution
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -71,6 +71,15 @@ class SlidingSettings:
             :meth:`~fatigue_pin.ocp.actuation_layer.ActuationLayer.window_budget`): the cycle ending
             at each of its nodes, repeated until ``max_cycles`` (needed), keeps each winding below
             its limit. A window that fails within its budget is solved again without it.
+        exact_finish: under an approximate Hessian (``solver.hessian`` not ``exact``), a window
+            whose solve stops at its iteration limit without a verdict of infeasibility
+            (:func:`~fatigue_pin.ocp.solver.failure_kind` ``not-converged``) is solved again
+            with the exact Hessian from its last iterate (primal and dual, IPOPT's warm start),
+            within ``exact_finish_iterations``; the run ends only where that fails too.
+            Gauss-Newton's linear convergence can stall near a window's optimum: the muscle
+            exhaustion study's last window does (docs/muscles.md, "To exhaustion"). The exact
+            Hessian's library is compiled on the first stall. No effect under ``exact``.
+        exact_finish_iterations: IPOPT iteration limit of an exact finish.
     """
 
     window: int = setting(expected="an integer number of cycles >= 1", check=lambda v: is_int(v) and v >= 1)
@@ -84,6 +93,8 @@ class SlidingSettings:
     guess_fatigue: str = setting("integrate", "'integrate' or 'copy'", lambda v: v in ("integrate", "copy"))
     warm_start: bool = setting(False, "true or false", is_bool)
     heat_budget: bool = setting(False, "true or false", is_bool)
+    exact_finish: bool = setting(False, "true or false", is_bool)
+    exact_finish_iterations: int = setting(150, "an integer >= 1", lambda v: is_int(v) and v >= 1)
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -220,6 +231,8 @@ class SlidingHorizon:
         end_box = self.sliding.end_tolerance if problem.task.cyclic else None
         self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box,
                                                                                     window_budget=self.sliding.heat_budget)
+        self._exact_args = (problem, transcription, replace(self.solver, hessian="exact"), guess, progress, end_box)
+        self._exact_ocp = None  # built on the first stalled window (SlidingSettings.exact_finish)
         self.model = problem.model
         self.study = study
         self.labels = dict(labels or {})
@@ -234,7 +247,8 @@ class SlidingHorizon:
             "fatigue": {h.name: [h.params.kind, *h.params.as_vector().tolist()] for h in self.problem.actuators.halves},
             "task": repr(self.problem.task),
             "window": [s.window, s.advance, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue,
-                       *(["heat_budget", s.max_cycles] if s.heat_budget else [])],  # its budget depends on max_cycles
+                       *(["heat_budget", s.max_cycles] if s.heat_budget else []),  # its budget depends on max_cycles
+                       *(["exact_finish", s.exact_finish_iterations] if self._finishes else [])],
             "transcription": repr(self.ocp.transcription),
             "x_init": self.problem.initial_state().tolist(),
             "model": [self.model.name, repr(self.model.payload)],
@@ -280,6 +294,26 @@ class SlidingHorizon:
             past = state.x[start - n + 1: start, L.m]
         return budgets.window_budget(self.problem.actuators, n, self.ocp.task.cycle_duration, start, K * n,
                                      int(self.sliding.max_cycles) * n, past)
+
+    @property
+    def _finishes(self) -> bool:
+        """Whether stalled windows get an exact finish (:attr:`SlidingSettings.exact_finish`)."""
+        return self.sliding.exact_finish and self.solver.hessian != "exact"
+
+    def _finish(self, sol: OcpSolution, budget: WindowBudget | None, solve: dict[str, Any]) -> tuple[OcpSolution, int]:
+        """A stalled window (``not-converged``) solved again with the exact Hessian from its last
+        iterate, when :attr:`_finishes`; its iterations and time count both solves. Returns the
+        solution and the exact finish's iterations (0: none)."""
+        if not self._finishes or sol.success or sol.nlp.kind != "not-converged":
+            return sol, 0
+        if self._exact_ocp is None:
+            problem, transcription, solver, guess, progress, end_box = self._exact_args
+            self._exact_ocp = OcpBuilder(problem, transcription, solver, guess, progress)(
+                self.sliding.window, end_box, window_budget=self.sliding.heat_budget)
+        again = self._exact_ocp.solve(x_init=solve["x_init"], guess=(sol.x, sol.u), x_end=solve["x_end"], warm=sol.nlp,
+                                      warm_start=True, max_iter=self.sliding.exact_finish_iterations, budget=budget)
+        return replace(again, iterations=sol.iterations + again.iterations, wall_time_s=sol.wall_time_s + again.wall_time_s), \
+            again.iterations
 
     def _iteration_limit(self, state: _State) -> int | None:
         return iteration_limit([row[4] for row in state.windows if row[3]], self.sliding, self.solver.max_iter)
@@ -417,6 +451,7 @@ class SlidingHorizon:
                 budget = self.window_budget(first_cycle, state)
                 sol, within = budgets.solve_within(ocp, budget, x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm,
                                                    warm_start=warm is not None)
+                sol, finished = self._finish(sol, budget if within else None, {"x_init": x_init, "x_end": x_init})
                 last = sol.nlp if sol.success else None
                 solved += 1
                 index = len(state.windows) if state is not None else 0
@@ -431,7 +466,7 @@ class SlidingHorizon:
                         store.write(self._failed_window(sol, first_cycle, failed_window_name(name)))
                     if store is not None:
                         store.write(self._run_result(state, work, ocp.build_time_s))
-                rep.line(self._window_line(index, first_cycle, sol, limit, mf_end.max(), budget, within))
+                rep.line(self._window_line(index, first_cycle, sol, limit, mf_end.max(), budget, within, finished))
                 bar.update(state.n_cycles - before, window=index, max_mf=f"{mf_end.max():.3f}", s_per_window=f"{sol.wall_time_s:.2f}")
             bar.close()
             if state is None:
@@ -462,16 +497,17 @@ class SlidingHorizon:
                 store.delete(work)
 
     def _window_line(self, index: int, first_cycle: int, sol: OcpSolution, limit: int | None, max_mf: float,
-                     budget: WindowBudget | None = None, within: bool = False) -> str:
+                     budget: WindowBudget | None = None, within: bool = False, finished: int = 0) -> str:
         """The progress line of a solved window; with a budget, its largest row (1: the limit
         at the task's end) and whether the window kept it; for a failed window, why
         (:func:`~fatigue_pin.ocp.solver.failure_kind`) and its last iterate's constraint violation:
         ``not-converged`` at a small one is a motion the solver did not show optimal, not an arm
-        that can do no more (docs/muscles.md, "To exhaustion")."""
+        that can do no more (docs/muscles.md, "To exhaustion"); ``finished``: the iterations of
+        an exact finish (:attr:`SlidingSettings.exact_finish`) among the window's."""
         K, L = self.sliding.window, self.ocp.layout
-        note = ""
+        note = f"  (exact finish: {finished} of these it)" if finished else ""
         if not sol.success and sol.nlp.kind:
-            note = f"  ({sol.nlp.kind}: constraint violation {sol.nlp.constraint_violation:.1e} at the last iterate)"
+            note += f"  ({sol.nlp.kind}: constraint violation {sol.nlp.constraint_violation:.1e} at the last iterate)"
         if budget is not None:
             before = np.vstack([budget.past, sol.x[:, L.m]])  # the node n before each node 1..K n
             rows = [E_last @ sol.x[i, L.m] + E_before @ before[i - 1] for i, (E_last, E_before) in enumerate(budget.rows, 1)]

@@ -338,3 +338,24 @@ def test_the_window_has_no_default(small_problem):
 
     with pytest.raises(ParameterError, match="expected SlidingSettings"):
         ClosedLoop(small_problem)
+
+
+def test_a_stalled_gauss_newton_window_is_finished_by_the_exact_hessian(small_problem, small_study, full_run):
+    """``exact_finish``: Gauss-Newton windows stopped at 6 iterations (``not-converged``) are solved
+    again with the exact Hessian from their last iterate; the run then keeps its windows, and
+    they reach the optima of the exact Hessian's own run (``full_run``). Without it the first
+    window ends the run."""
+    import dataclasses
+
+    gauss_newton = dataclasses.replace(small_study.solver(), derivative_blocks=True, hessian="gauss-newton", max_iter=6)
+    settings = dict(window=3, advance=1, max_cycles=4)
+    lines: list[str] = []
+    finished = SlidingHorizon(small_problem, SlidingSettings(**settings, exact_finish=True), small_study.transcription(),
+                              gauss_newton).run(progress=lines.append)
+    exact, _ = full_run
+    assert finished.windows["converged"].all() and finished.n_cycles == 4
+    assert (finished.windows["iterations"] > 6).all()  # the stall's 6 and the finish's
+    np.testing.assert_allclose(finished.windows["objective"], exact.windows["objective"][:2], rtol=1e-6)
+    assert all("(exact finish: " in line for line in lines if line.startswith("window "))
+    stalled = SlidingHorizon(small_problem, SlidingSettings(**settings), small_study.transcription(), gauss_newton).run()
+    assert stalled.n_cycles == 0 and not stalled.windows["converged"].any()
