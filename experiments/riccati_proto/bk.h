@@ -1,0 +1,116 @@
+// Partial Bunch-Kaufman LDL^T of a dense symmetric front (full storage, in place): pivots only among
+// the first m indices; the trailing (n-m) block becomes the Schur complement. Rank-1/2 updates loop
+// over the pivot column's nonzeros (slacks and their rows are 1x1 pivots touching a few entries).
+#pragma once
+#include <Eigen/Dense>
+#include <cmath>
+#include <vector>
+struct PartialBK {
+  int n = 0, m = 0, neg = 0, pos = 0; bool singular = false;
+  std::vector<int> swp;   // swp[k]: index swapped with k (or with k+1 for a 2x2 at k) before step k
+  std::vector<int> piv2;  // 1 if step k starts a 2x2 pivot
+  std::vector<double> dinv;  // 1x1: 1/d at k; 2x2: inverse entries a,b,c at k,k+1 (stored in dinv[k], dinv[k+1], off[k])
+  std::vector<double> off;
+  std::vector<int> nz; std::vector<double> l0v, l1v;
+  static void swap_sym(Eigen::MatrixXd& K, int i, int j) {
+    if (i == j) return;
+    K.row(i).swap(K.row(j)); K.col(i).swap(K.col(j));
+  }
+  void factor(Eigen::MatrixXd& K, int m_) {
+    n = K.rows(); m = m_; neg = pos = 0; singular = false;
+    swp.assign(m, -1); piv2.assign(m, 0); dinv.assign(m, 0); off.assign(m, 0);
+    const double alpha = (1 + std::sqrt(17.0)) / 8;
+    int k = 0;
+    while (k < m) {
+      double akk = std::abs(K(k, k)); int imax = -1; double colmax = 0;
+      for (int i = k + 1; i < m; ++i) { double v = std::abs(K(i, k)); if (v > colmax) { colmax = v; imax = i; } }
+      int kind = 1, p = k;
+      if (akk >= alpha * colmax) { p = k; }
+      else {
+        double rowmax = 0;
+        for (int j = k; j < m; ++j) if (j != imax) rowmax = std::max(rowmax, std::abs(K(imax, j)));
+        if (akk * rowmax >= alpha * colmax * colmax) p = k;
+        else if (std::abs(K(imax, imax)) >= alpha * rowmax) p = imax;
+        else { kind = 2; p = imax; }
+      }
+      if (kind == 1) {
+        swp[k] = p; swap_sym(K, k, p);
+        double d = K(k, k);
+        if (d == 0 || !std::isfinite(d)) { singular = true; return; }
+        (d < 0 ? neg : pos)++;
+        double di = 1 / d; dinv[k] = di;
+        nz.clear(); for (int i = k + 1; i < n; ++i) if (K(i, k) != 0) nz.push_back(i);
+        int r = n - k - 1;
+        if ((int)nz.size() * 2 > r) {
+          auto col = K.col(k).tail(r);
+          K.bottomRightCorner(r, r).noalias() -= (col * di) * col.transpose();
+          col *= di;
+        } else {
+          for (int a : nz) { double la = K(a, k) * di; for (int b : nz) K(b, a) -= la * K(b, k); }
+          for (int a : nz) { K(a, k) *= di; }
+        }
+        ++k;
+      } else {
+        swp[k] = p; piv2[k] = 1; swap_sym(K, k + 1, p);
+        double a = K(k, k), b = K(k + 1, k), c = K(k + 1, k + 1), det = a * c - b * b;
+        if (det == 0) { singular = true; return; }
+        if (det < 0) { ++neg; ++pos; } else if (a + c < 0) neg += 2; else pos += 2;
+        double ia = c / det, ib = -b / det, ic = a / det;
+        dinv[k] = ia; off[k] = ib; dinv[k + 1] = ic;
+        nz.clear(); for (int i = k + 2; i < n; ++i) if (K(i, k) != 0 || K(i, k + 1) != 0) nz.push_back(i);
+        int r = n - k - 2;
+        if ((int)nz.size() * 2 > r) {
+          Eigen::MatrixXd W = K.block(k + 2, k, r, 2);
+          Eigen::Matrix2d Di; Di << ia, ib, ib, ic;
+          Eigen::MatrixXd Lw = W * Di;
+          K.bottomRightCorner(r, r).noalias() -= Lw * W.transpose();
+          K.block(k + 2, k, r, 2) = Lw;
+        } else {
+        l0v.resize(nz.size()); l1v.resize(nz.size());
+        for (size_t t = 0; t < nz.size(); ++t) { double u = K(nz[t], k), v = K(nz[t], k + 1); l0v[t] = u * ia + v * ib; l1v[t] = u * ib + v * ic; }
+        for (size_t t = 0; t < nz.size(); ++t) { int r = nz[t]; for (int s : nz) K(s, r) -= l0v[t] * K(s, k) + l1v[t] * K(s, k + 1); }
+        for (size_t t = 0; t < nz.size(); ++t) { K(nz[t], k) = l0v[t]; K(nz[t], k + 1) = l1v[t]; }
+        }
+        k += 2;
+      }
+    }
+  }
+  // forward: apply swaps and L^{-1} to front vector y (length n); then y[0..m) *= D^{-1}
+  template <class V> void forward(V& y) const {
+    for (int k = 0; k < m;) { if (!piv2[k]) { std::swap(y[k], y[swp[k]]); ++k; } else { std::swap(y[k + 1], y[swp[k]]); k += 2; } }
+    for (int k = 0; k < m;) {
+      if (!piv2[k]) {
+        double yk = y[k];
+        if (yk != 0) for (int i = k + 1; i < n; ++i) y[i] -= L(i, k) * yk;
+        ++k;
+      } else {
+        double y0 = y[k], y1 = y[k + 1];
+        for (int i = k + 2; i < n; ++i) y[i] -= L(i, k) * y0 + L(i, k + 1) * y1;
+        k += 2;
+      }
+    }
+    for (int k = 0; k < m;) {
+      if (!piv2[k]) { y[k] *= dinv[k]; ++k; }
+      else { double y0 = y[k], y1 = y[k + 1]; y[k] = dinv[k] * y0 + off[k] * y1; y[k + 1] = off[k] * y0 + dinv[k + 1] * y1; k += 2; }
+    }
+  }
+  // backward: y[m..n) hold the rest's solution; y[0..m) the forward values
+  template <class V> void backward(V& y) const {
+    int k = m - 1;
+    while (k >= 0) {
+      bool two = (k >= 1 && piv2[k - 1]);
+      if (!two) {
+        double s = y[k]; for (int i = k + 1; i < n; ++i) s -= L(i, k) * y[i]; y[k] = s;
+        k -= 1;
+      } else {
+        int j = k - 1; double s0 = y[j], s1 = y[k];
+        for (int i = k + 1; i < n; ++i) { s0 -= L(i, j) * y[i]; s1 -= L(i, k) * y[i]; }
+        y[j] = s0; y[k] = s1; k -= 2;
+      }
+    }
+    std::vector<int> st; for (int k = 0; k < m;) { st.push_back(k); k += piv2[k] ? 2 : 1; }
+    for (int t = st.size() - 1; t >= 0; --t) { int k = st[t]; if (!piv2[k]) std::swap(y[k], y[swp[k]]); else std::swap(y[k + 1], y[swp[k]]); }
+  }
+  const Eigen::MatrixXd* Kp = nullptr;
+  double L(int i, int k) const { return (*Kp)(i, k); }
+};
