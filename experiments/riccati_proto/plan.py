@@ -32,7 +32,7 @@ pair={r:v for r,v in pair.items() if cnt[v]==1}   # drop ambiguous
 state=set(pair.values()); defrow={v:r for r,v in pair.items()}
 # stage of states: longest path over dynamics rows
 stage={}
-import functools, sys as _s
+import sys as _s
 _s.setrecursionlimit(100000)
 def st(v):
     if v in stage: return stage[v]
