@@ -231,8 +231,12 @@ class SlidingHorizon:
         end_box = self.sliding.end_tolerance if problem.task.cyclic else None
         self.ocp = OcpBuilder(problem, transcription, self.solver, guess, progress)(self.sliding.window, end_box,
                                                                                     window_budget=self.sliding.heat_budget)
-        self._exact_args = (problem, transcription, replace(self.solver, hessian="exact"), guess, progress, end_box)
-        self._exact_ocp = None  # built on the first stalled window (SlidingSettings.exact_finish)
+        self._end_box = end_box
+        #: the exact Hessian's builder of :meth:`_finish` (SlidingSettings.exact_finish), or None;
+        #: its window OCP is built on the first stalled window
+        exact = replace(self.solver, hessian="exact")
+        self._exact = OcpBuilder(problem, transcription, exact, guess, progress) if self._finishes else None
+        self._exact_ocp: Any = None
         self.model = problem.model
         self.study = study
         self.labels = dict(labels or {})
@@ -300,17 +304,15 @@ class SlidingHorizon:
         """Whether stalled windows get an exact finish (:attr:`SlidingSettings.exact_finish`)."""
         return self.sliding.exact_finish and self.solver.hessian != "exact"
 
-    def _finish(self, sol: OcpSolution, budget: WindowBudget | None, solve: dict[str, Any]) -> tuple[OcpSolution, int]:
-        """A stalled window (``not-converged``) solved again with the exact Hessian from its last
-        iterate, when :attr:`_finishes`; its iterations and time count both solves. Returns the
-        solution and the exact finish's iterations (0: none)."""
-        if not self._finishes or sol.success or sol.nlp.kind != "not-converged":
+    def _finish(self, sol: OcpSolution, budget: WindowBudget | None, x_init: np.ndarray) -> tuple[OcpSolution, int]:
+        """A stalled window (``not-converged``) from ``x_init`` solved again with the exact
+        Hessian from its last iterate, when :attr:`_finishes`; its iterations and time count both
+        solves. Returns the solution and the exact finish's iterations (0: none)."""
+        if self._exact is None or sol.success or sol.nlp.kind != "not-converged":
             return sol, 0
         if self._exact_ocp is None:
-            problem, transcription, solver, guess, progress, end_box = self._exact_args
-            self._exact_ocp = OcpBuilder(problem, transcription, solver, guess, progress)(
-                self.sliding.window, end_box, window_budget=self.sliding.heat_budget)
-        again = self._exact_ocp.solve(x_init=solve["x_init"], guess=(sol.x, sol.u), x_end=solve["x_end"], warm=sol.nlp,
+            self._exact_ocp = self._exact(self.sliding.window, self._end_box, window_budget=self.sliding.heat_budget)
+        again = self._exact_ocp.solve(x_init=x_init, guess=(sol.x, sol.u), x_end=x_init, warm=sol.nlp,
                                       warm_start=True, max_iter=self.sliding.exact_finish_iterations, budget=budget)
         return replace(again, iterations=sol.iterations + again.iterations, wall_time_s=sol.wall_time_s + again.wall_time_s), \
             again.iterations
@@ -451,7 +453,7 @@ class SlidingHorizon:
                 budget = self.window_budget(first_cycle, state)
                 sol, within = budgets.solve_within(ocp, budget, x_init=x_init, guess=guess, x_end=x_init, max_iter=limit, warm=warm,
                                                    warm_start=warm is not None)
-                sol, finished = self._finish(sol, budget if within else None, {"x_init": x_init, "x_end": x_init})
+                sol, finished = self._finish(sol, budget if within else None, x_init)
                 last = sol.nlp if sol.success else None
                 solved += 1
                 index = len(state.windows) if state is not None else 0

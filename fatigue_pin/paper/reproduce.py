@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fatigue_pin.core.cores import usable_cores
 from fatigue_pin.paper.curl import COSTS, PAPER_MINUTES_S0, PAPER_REPETITIONS
 
+from fatigue_pin.core.cores import usable_cores
 from fatigue_pin.core.progress import Progress, as_reporter
 
 @dataclass(frozen=True)
