@@ -231,6 +231,9 @@ class IntervalFunctions:
         z = ca.SX.sym("z", ny + A.n_states)
         us, ps = ca.SX.sym("u", A.nu), ca.SX.sym("p", A.n_params)
         tau = A.joint_torque(us, z[ny:], z[:ny])  # muscles: on (q, qdot) too
+        #: ``(y, u, p) -> (ydot, d(ddq)/d(y, u))`` of a torque of (q, qdot, u) alone, for
+        #: :meth:`active_sensitivity_jacobian`; None where the torque depends on m
+        self._active_stage = None
         if ca.depends_on(tau, z[ny:]):
             zs, rates, z0 = z, ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps)), ca.vertcat(y, m)
         else:
@@ -238,6 +241,9 @@ class IntervalFunctions:
             # RK4 of y alone has the same y part, without the fatigue states' stages, which the
             # derivative calls of compiled code would carry
             zs, rates, z0 = z[:ny], self.f_rb(z[:ny], tau), y
+            if L.nq == L.nv and not ca.depends_on(rates, ps):
+                self._active_stage = ca.Function("f_active_stage", [zs, us, ps], [rates, ca.jacobian(rates[L.nq:], ca.vertcat(zs, us))],
+                                                 ["y", "u", "p"], ["ydot", "dddq"])
 
         def flow(options: dict) -> tuple[ca.Function, ca.Function]:
             f = ca.Function("f_active", [zs, us, ps], [rates], options)
@@ -259,6 +265,48 @@ class IntervalFunctions:
         self.F_rb_active_euler_step = ca.Function("F_rb_active_euler_step", [y, m, u, p], [(z0 + dt * f(z0, u, p))[:ny]],
                                                   ["y", "m", "u", "p"], ["y_next"])
         return F
+
+    def active_sensitivity_jacobian(self, diff: tuple[int, ...]) -> ca.Function | None:
+        """``jblk_F_rb_active(w, *others) -> (y_next, J)``: the RK4 of :attr:`F_rb_active` and its
+        Jacobian by forward sensitivities, for a torque of (q, qdot, u) alone (the muscles'), else
+        None. Each RK4 stage needs the Jacobian of its right-hand side, whose qdot rows are
+        ``[0, I | 0]`` and whose ddq rows take two reverse sweeps (nv of them) of one stage
+        (:attr:`_active_stage`); the sensitivities S = dy/d(y, u) then combine as the RK4 step
+        does. CasADi's Jacobian of the flow takes ny reverse sweeps through every stage instead:
+        the muscle curl's Jacobian block, 0.75 M operations against 1.40 M (docs/muscles.md, "To
+        exhaustion"). The same values as ``ca.jacobian`` to rounding; the columns of m (the flow
+        does not depend on it) are structural zeros. ``diff``: the differentiated inputs of
+        ``F_rb_active(y, m, u, p)``, as :meth:`build_blocks` has them."""
+        stage = self._active_stage
+        F = self.F_rb_active
+        if stage is None or F is None or 3 in diff or 0 not in diff:
+            return None
+        nq, ny, nu = self.layout.nq, self.layout.nq + self.layout.nv, F.size1_in(2)
+        sizes = [F.size1_in(i) for i in diff]
+        w = ca.MX.sym("w", sum(sizes))
+        pieces = dict(zip(diff, ca.vertsplit(w, list(np.cumsum([0, *sizes])))))
+        others = [ca.MX.sym(F.name_in(i), F.sparsity_in(i)) for i in range(F.n_in()) if i not in diff]
+        given = dict(zip([i for i in range(F.n_in()) if i not in diff], others))
+        y, u, p = pieces[0], pieces.get(2, given.get(2)), given[3]
+        S = ca.MX(ca.DM.eye(ny + nu)[:ny, :])  # dy/d(y, u)
+        tail = ca.MX(ca.DM.eye(ny + nu)[ny:, :])  # du/d(y, u)
+
+        def rates(ys: ca.MX, Ss: ca.MX) -> tuple[ca.MX, ca.MX]:
+            ydot, dddq = stage(ys, u, p)
+            return ydot, ca.vertcat(Ss[nq:, :], ca.mtimes(dddq[:, :ny], Ss) + ca.mtimes(dddq[:, ny:], tail))
+
+        h = self._h
+        for _ in range(self.substeps):
+            k1, d1 = rates(y, S)
+            k2, d2 = rates(y + h / 2 * k1, S + h / 2 * d1)
+            k3, d3 = rates(y + h / 2 * k2, S + h / 2 * d2)
+            k4, d4 = rates(y + h * k3, S + h * d3)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+        columns = {0: S[:, :ny], 1: ca.MX(ny, F.size1_in(1)), 2: S[:, ny:]}
+        J = ca.horzcat(*[columns[i] for i in diff])
+        names = ["w", *[F.name_in(i) for i in range(F.n_in()) if i not in diff]]
+        return ca.Function(JAC_BLOCK + F.name(), [w, *others], [y, J], names, ["y", "J"])
 
     def rigid_body_step(self, y: ca.MX, m: ca.MX, u: ca.MX, p: ca.MX, T: ca.MX | None = None,
                         call: Callable[..., ca.MX] | None = None) -> ca.MX:
@@ -299,7 +347,7 @@ class IntervalFunctions:
             diff = tuple(int(i) for i in diffs[f.name()])
             ready = self.analytical_rb_jacobian() if rb and jacobian == "analytical" and diff == (0, 1) else None
             if f.name() == "F_rb_active" and self._F_rb_active_jacobian is not None:
-                ready = block_functions(self._F_rb_active_jacobian, diff, hessian=False).jac
+                ready = self.active_sensitivity_jacobian(diff) or block_functions(self._F_rb_active_jacobian, diff, hessian=False).jac
             # gauss-newton drops the rigid body's second derivatives, with a state-dependent torque too
             exact = not (f.name() in ("F_rb", "F_rb_active") and hessian == "gauss-newton")
             self.blocks[f.name()] = block_functions(f, diff, hessian=exact,

@@ -72,12 +72,15 @@ def failure_kind(status: str, constraint_violation: Sequence[float], tol: float)
     Returns one of:
         ``converged``;
         ``infeasible``: IPOPT's infeasibility certificate (``Infeasible_Problem_Detected``) or a
-            restoration phase that could not reduce the constraint violation (``Restoration_Failed``);
+            restoration phase that could not reduce the constraint violation (``Restoration_Failed``
+            with the last iterate's violation above ``tol``);
         ``infeasible-growing``: stopped by a limit with the constraint violation above ``tol`` and
             larger at the end than at its lowest point by 10x (the iterates move away from
             feasibility);
         ``not-converged``: stopped by the iteration or time limit otherwise (feasible or
-            approaching it, so more iterations or another start might converge);
+            approaching it, so more iterations or another start might converge), or a
+            ``Restoration_Failed`` whose last iterate meets ``tol``: the line search stalled at a
+            feasible point (an approximate Hessian's tail can), which is no verdict of infeasibility;
         ``numerical``: any other status (``Error_In_Step_Computation``,
             ``Search_Direction_Becomes_Too_Small``, ...): the step computation broke down.
 
@@ -88,10 +91,12 @@ def failure_kind(status: str, constraint_violation: Sequence[float], tol: float)
     """
     if status in CONVERGED_STATUSES:
         return "converged"
+    viol = np.asarray(constraint_violation, dtype=float)
+    if status == "Restoration_Failed" and viol.size and viol[-1] <= tol:
+        return "not-converged"
     if status in INFEASIBLE_STATUSES:
         return "infeasible"
     if status in LIMIT_STATUSES:
-        viol = np.asarray(constraint_violation, dtype=float)
         if viol.size and viol[-1] > tol and viol[-1] > 10 * np.min(viol):
             return "infeasible-growing"
         return "not-converged"

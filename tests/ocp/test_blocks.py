@@ -240,3 +240,33 @@ def test_one_step_hessian_of_a_torque_that_follows_the_state(tmp_path):
     h1, hN = np.asarray(H["one"](wv, *ov, mv)), np.asarray(H["exact"](wv, *ov, mv))
     assert np.allclose(mine, np.tril(h1), rtol=1e-9, atol=1e-10)
     assert 0 < np.abs(h1 - hN).max() < 0.2 * np.abs(hN).max()
+
+
+def test_the_muscle_flows_sensitivity_jacobian_is_casadis(tmp_path):
+    """Muscles, compiled layout: the Jacobian block of ``F_rb_active`` by forward sensitivities
+    (IntervalFunctions.active_sensitivity_jacobian) has the flow's value and CasADi's Jacobian of
+    the flow at a random point, and the fatigue states' columns are zero (the flow does not
+    depend on them)."""
+    from conftest import muscle_curl, two_muscle_file
+
+    from fatigue_pin.ocp.intervals import IntervalFunctions
+
+    study = muscle_curl(two_muscle_file(tmp_path), **{"task.intervals_per_cycle": 20})
+    fn = IntervalFunctions(study.problem(), study.transcription(), fatigue_calls=True)
+    F = fn.F_rb_active
+    diff = (0, 1, 2)
+    jac = fn.active_sensitivity_jacobian(diff)
+    assert jac is not None and fn.active_sensitivity_jacobian((1, 2)) is None  # y must be differentiated
+    sizes = [F.size1_in(i) for i in diff]
+    w, p = ca.MX.sym("w", sum(sizes)), ca.MX.sym("p", F.sparsity_in(3))
+    y, m, u = ca.vertsplit(w, list(np.cumsum([0, *sizes])))
+    ref = ca.Function("ref", [w, p], [F(y, m, u, p), ca.jacobian(F(y, m, u, p), w)])
+    rng = np.random.default_rng(7)
+    x0 = study.problem().initial_state()
+    wv = np.r_[x0[:4] + 0.1 * rng.normal(size=4), x0[4:4 + sizes[1]], rng.uniform(0, 1, sizes[2])]
+    pv = rng.uniform(0.5, 2.0, F.sparsity_in(3).numel())
+    y_ref, J_ref = (np.asarray(ca.densify(v)) for v in ref(wv, pv))
+    y_sens, J_sens = (np.asarray(ca.densify(v)) for v in jac(wv, pv))
+    assert np.allclose(y_sens, y_ref, rtol=0, atol=1e-13)
+    assert np.abs(J_ref).max() > 1.0 and np.allclose(J_sens, J_ref, rtol=1e-11, atol=1e-11 * np.abs(J_ref).max())
+    assert not J_sens[:, sizes[0]:sizes[0] + sizes[1]].any()

@@ -80,6 +80,8 @@ def test_failure_kinds_tell_infeasibility_from_limits():
     assert failure_kind("Solve_Succeeded", [1.0, 1e-8], 1e-4) == "converged"
     assert failure_kind("Infeasible_Problem_Detected", [1.0], 1e-4) == "infeasible"
     assert failure_kind("Restoration_Failed", [1.0], 1e-4) == "infeasible"
+    # a restoration phase entered at a feasible point (the line search stalled there) is no verdict
+    assert failure_kind("Restoration_Failed", [1.0, 1e-3, 1e-9], 1e-4) == "not-converged"
     # stopped by a limit while the violation grew from its lowest point: moving away from feasibility
     assert failure_kind("Maximum_Iterations_Exceeded", [1.0, 1e-3, 0.5], 1e-4) == "infeasible-growing"
     # stopped by a limit while (nearly) feasible, or still decreasing: just not converged
