@@ -348,7 +348,8 @@ class SlidingHorizon:
             status=str(table["status"][-1].decode()) if table.size else "not started",
             wall_time_s=float(table["wall_time_s"].sum()) if table.size else 0.0,
             build_time_s=build_time,
-            compile_time_s=ocp.compile_time_s,
+            # with the exact finish's library, when a stall had it compiled
+            compile_time_s=ocp.compile_time_s + (self._exact_ocp.compile_time_s if self._exact_ocp is not None else 0.0),
             iterations=int(table["iterations"].sum()) if table.size else 0,
             converged_windows=converged,
             median_real_time_factor=median_real_time_factor(table, self._advanced_s),

@@ -88,9 +88,29 @@ def differentiated_inputs(call: MappedCall, x: ca.MX) -> tuple[int, ...]:
 EXPAND_MAX_INSTRUCTIONS = 50_000
 
 
+def _called_instructions(f: ca.Function, limit: int) -> int:
+    """The SX instructions of the functions that an MX function ``f`` calls (recursively through
+    MX callees), counted until they pass ``limit``: about what ``f.expand()`` would hold (its
+    inputs and outputs counted too), without expanding."""
+    total = 0
+    for k in range(f.n_instructions()):
+        if f.instruction_id(k) != ca.OP_CALL:
+            continue
+        callee = f.instruction_MX(k).which_function()
+        total += callee.n_instructions() if callee.is_a("SXFunction") else _called_instructions(callee, limit - total)
+        if total > limit:
+            break
+    return total
+
+
 def _maybe_expanded(f: ca.Function) -> ca.Function:
-    """``f`` expanded to an SX function of the same name if that is small enough."""
+    """``f`` expanded to an SX function of the same name if that is small enough. Functions whose
+    calls alone hold over 10 times :data:`EXPAND_MAX_INSTRUCTIONS` are not expanded to be
+    measured: the muscle curl's exact Hessian block of the rigid body would take 8 s to reach
+    21 M instructions, only to be kept as MX."""
     if f.is_a("SXFunction"):
+        return f
+    if _called_instructions(f, 10 * EXPAND_MAX_INSTRUCTIONS) > 10 * EXPAND_MAX_INSTRUCTIONS:
         return f
     sx = f.expand()
     if sx.n_instructions() > EXPAND_MAX_INSTRUCTIONS:

@@ -270,3 +270,26 @@ def test_the_muscle_flows_sensitivity_jacobian_is_casadis(tmp_path):
     assert np.allclose(y_sens, y_ref, rtol=0, atol=1e-13)
     assert np.abs(J_ref).max() > 1.0 and np.allclose(J_sens, J_ref, rtol=1e-11, atol=1e-11 * np.abs(J_ref).max())
     assert not J_sens[:, sizes[0]:sizes[0] + sizes[1]].any()
+
+
+def test_a_block_whose_calls_are_too_large_is_kept_as_mx_without_expanding():
+    """_maybe_expanded: small MX functions become SX; one whose calls alone hold over 10x the
+    limit stays MX, judged by counting its callees' instructions (no expansion: the muscle
+    curl's exact Hessian block would take seconds to expand only to be dropped)."""
+    from fatigue_pin.ocp import blocks
+
+    x = ca.SX.sym("x", 4)
+    g = ca.Function("g", [x], [ca.sin(x) * ca.cos(x) + x])
+    small_n = blocks.EXPAND_MAX_INSTRUCTIONS // (4 * g.n_instructions())
+    X = ca.MX.sym("X", 4)
+    y = X
+    for _ in range(small_n):
+        y = g(y)
+    small = ca.Function("small", [X], [y])
+    assert small.expand().n_instructions() <= blocks._called_instructions(small, 10**9) <= blocks.EXPAND_MAX_INSTRUCTIONS
+    assert blocks._maybe_expanded(small).is_a("SXFunction")
+    big = ca.Function("big", [X], [ca.vertcat(*[small(X + k) for k in range(60)])])  # 60 nested calls of `small`
+    assert blocks._called_instructions(big, 10**9) > 10 * blocks.EXPAND_MAX_INSTRUCTIONS
+    kept = blocks._maybe_expanded(big)
+    assert kept is big and not kept.is_a("SXFunction")
+    assert np.allclose(np.asarray(kept(np.arange(4.0))), np.asarray(big.expand()(np.arange(4.0))))
