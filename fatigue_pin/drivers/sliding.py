@@ -72,7 +72,8 @@ class SlidingSettings:
             at each of its nodes, repeated until ``max_cycles`` (needed), keeps each winding below
             its limit. A window that fails within its budget is solved again without it.
         exact_finish: under an approximate Hessian (``solver.hessian`` not ``exact``), a window
-            whose solve stops at its iteration limit without a verdict of infeasibility
+            whose solve stops at its iteration limit without a verdict of infeasibility, or
+            whose line search stalls at a feasible point
             (:func:`~fatigue_pin.ocp.solver.failure_kind` ``not-converged``) is solved again
             with the exact Hessian from its last iterate (primal and dual, IPOPT's warm start),
             within ``exact_finish_iterations``; the run ends only where that fails too.

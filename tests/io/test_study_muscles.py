@@ -88,15 +88,21 @@ def test_muscle_keys_that_need_muscles_are_refused_on_torque_halves(arm26):
 
 def test_the_exhaustion_study_is_the_sliding_one_with_weak_residuals(arm26):
     """studies/curl_muscles_exhaustion.toml differs from curl_muscles_sliding.toml only in its
-    name, its residual bound (5 N m, which the run to exhaustion rests on: docs/muscles.md) and its
-    cycle cap; its residual halves are bounded at 5 N m and do not tire."""
+    name, its residual bound (5 N m, which the run to exhaustion rests on: docs/muscles.md), its
+    cycle cap and its end rule (the exact finish of stalled windows, IPOPT's acceptable objective
+    change 1e-8); its residual halves are bounded at 5 N m and do not tire."""
     from pathlib import Path
 
     studies = Path(__file__).resolve().parents[2] / "studies"
     sliding = Study.from_file(studies / "curl_muscles_sliding.toml")
     exhaustion = Study.from_file(studies / "curl_muscles_exhaustion.toml")
-    assert exhaustion.replace({"name": sliding.data["name"], "actuators.residuals": 50.0,
-                               "horizon.max_cycles": sliding.data["horizon"]["max_cycles"]}).data == sliding.data
+    assert exhaustion.data["horizon"]["exact_finish"] is True
+    back = exhaustion.replace({"name": sliding.data["name"], "actuators.residuals": 50.0,
+                               "horizon.max_cycles": sliding.data["horizon"]["max_cycles"],
+                               "solver.ipopt.acceptable_obj_change_tol": 1e-9,
+                               "horizon.exact_finish": sliding.data["horizon"]["exact_finish"],
+                               "horizon.exact_finish_iterations": sliding.data["horizon"]["exact_finish_iterations"]}).data
+    assert back == sliding.data
     assert exhaustion.data["horizon"]["max_cycles"] > 30
     layer = exhaustion.replace({"actuators.paths": "exact"}).actuators(arm26)  # no fit of the paths: a short test
     assert np.array_equal(layer.control_bounds()[1], np.r_[np.ones(6), 5.0, 5.0, 0.0, 0.0])
