@@ -23,7 +23,7 @@ import numpy as np
 
 from fatigue_pin.paper.curl import curl_study
 from fatigue_pin.io.results import ResultFile
-from fatigue_pin.drivers.sliding import SlidingHorizon, SlidingSettings
+from fatigue_pin.drivers.sliding import SlidingHorizon
 
 
 def main() -> None:

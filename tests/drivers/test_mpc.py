@@ -247,7 +247,7 @@ def test_warm_started_re_plans_reach_the_cold_plans_in_fewer_iterations():
         loop = ClosedLoop(study.problem(), None, SlidingSettings(window=3, advance=1, max_cycles=4, warm_start=warm),
                           MpcSettings(replan_every=2), None, study.transcription(), study.solver())
         runs[warm] = (loop, loop.run())
-    (cold_loop, cold), (warm_loop, warm) = runs[False], runs[True]
+    (_, cold), (warm_loop, warm) = runs[False], runs[True]
     assert len(warm.replans) == len(cold.replans) >= 5 and all(r[4] for r in warm.replans)
     assert {k[:2] for k in warm_loop._shifts} >= {(0, 2), (2, 4)}  # maps between windows of other phases
     assert np.abs(np.array(warm.x) - np.array(cold.x)).max() < 1e-5
