@@ -36,6 +36,22 @@ def rk4(f: ca.Function, x: ca.MX | ca.SX, args: tuple, h: float, steps: int) -> 
     return x
 
 
+def rk4_sensitivities(rates: Callable[[ca.MX, ca.MX], tuple[ca.MX, ca.MX]], y: ca.MX, S: ca.MX, h: float,
+                      substeps: int) -> tuple[ca.MX, ca.MX]:
+    """``substeps`` RK4 steps of length h (s) of the state y (ny,) and of its sensitivities S
+    (ny, n) to n parameters, where ``rates(y, S)`` gives (ydot, dS/dt): the sensitivities step as
+    the state does (forward sensitivities of an explicit RK4, exact to rounding). Returns
+    (y, S) at the end."""
+    for _ in range(substeps):
+        k1, d1 = rates(y, S)
+        k2, d2 = rates(y + h / 2 * k1, S + h / 2 * d1)
+        k3, d3 = rates(y + h / 2 * k2, S + h / 2 * d2)
+        k4, d4 = rates(y + h * k3, S + h * d3)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+    return y, S
+
+
 class IntervalFunctions:
     """The functions of one shooting interval, built once per problem structure and dt.
 
@@ -165,14 +181,7 @@ class IntervalFunctions:
             ydot, dq, dv, minv = self.f_rb_derivatives(ys, tau)
             return ydot, ca.vertcat(Ss[nq:, :], ca.mtimes(dq, Ss[:nq, :]) + ca.mtimes(dv, Ss[nq:, :]) + ca.horzcat(control, minv))
 
-        h = self._h
-        for _ in range(self.substeps):
-            k1, d1 = stage(y, S)
-            k2, d2 = stage(y + h / 2 * k1, S + h / 2 * d1)
-            k3, d3 = stage(y + h / 2 * k2, S + h / 2 * d2)
-            k4, d4 = stage(y + h * k3, S + h * d3)
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+        y, S = rk4_sensitivities(stage, y, S, self._h, self.substeps)
         return ca.Function(JAC_BLOCK + "F_rb", [w], [y, S], ["w"], ["y", "J"])
 
     #: library functions that only the transcription's constraints evaluate (no other NLP, such
@@ -295,14 +304,7 @@ class IntervalFunctions:
             ydot, dddq = stage(ys, u, p)
             return ydot, ca.vertcat(Ss[nq:, :], ca.mtimes(dddq[:, :ny], Ss) + ca.mtimes(dddq[:, ny:], tail))
 
-        h = self._h
-        for _ in range(self.substeps):
-            k1, d1 = rates(y, S)
-            k2, d2 = rates(y + h / 2 * k1, S + h / 2 * d1)
-            k3, d3 = rates(y + h / 2 * k2, S + h / 2 * d2)
-            k4, d4 = rates(y + h * k3, S + h * d3)
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
+        y, S = rk4_sensitivities(rates, y, S, self._h, self.substeps)
         columns = {0: S[:, :ny], 1: ca.MX(ny, F.size1_in(1)), 2: S[:, ny:]}
         J = ca.horzcat(*[columns[i] for i in diff])
         names = ["w", *[F.name_in(i) for i in range(F.n_in()) if i not in diff]]
