@@ -119,13 +119,14 @@ def _maybe_expanded(f: ca.Function) -> ca.Function:
 
 
 def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True, hessian_of: ca.Function | None = None,
-                    jacobian: ca.Function | None = None) -> BlockPair:
+                    jacobian: ca.Function | None = None, hessian_block: ca.Function | None = None) -> BlockPair:
     """``jblk_<f>`` and ``hblk_<f>`` of a one-output function ``f`` for the inputs ``diff``
     (``hessian=False``: no ``hblk_<f>``; the Lagrangian's Hessian then omits f's curvature;
     ``hessian_of``: ``hblk_<f>`` holds the second derivatives of this function of the same
     signature instead, e.g. a coarser integrator of the same flow: an approximate Hessian;
     ``jacobian``: a ready ``jblk_<f>`` of the same inputs and outputs, taken as it is instead of
-    CasADi's, e.g. one from analytical derivatives).
+    CasADi's, e.g. one from analytical derivatives; ``hessian_block``: likewise a ready
+    ``hblk_<f>`` (with ``hessian``), e.g. one from the stages' adjoints).
 
     SX functions give SX blocks; MX functions (RK4 as calls of an SX right-hand side) are
     inlined, so the blocks call derivatives of the SX right-hand side only, and each block is
@@ -149,6 +150,8 @@ def block_functions(f: ca.Function, diff: Sequence[int], hessian: bool = True, h
         ca.Function(JAC_BLOCK + f.name(), [w, *others], [y, ca.jacobian(y, w)], names, ["y", "J"]))
     if not hessian:
         return BlockPair(diff, jac, None)
+    if hessian_block is not None:
+        return BlockPair(diff, jac, hessian_block)
     if hessian_of is not None:
         y = hessian_of.call(args, True, False)[0] if kind is ca.MX else hessian_of(*args)
     hess = ca.Function(HESS_BLOCK + f.name(), [w, *others, mu], [ca.tril(ca.hessian(ca.dot(mu, y), w)[0])],

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Callable, Mapping
 import casadi as ca
 import numpy as np
 
-from fatigue_pin.ocp.blocks import JAC_BLOCK, BlockPair, block_functions
+from fatigue_pin.ocp.blocks import HESS_BLOCK, JAC_BLOCK, BlockPair, block_functions
+from fatigue_pin.ocp.sensitivities import rk4_adjoint_hessian, rk4_sensitivities
 from fatigue_pin.ocp.costs import IntervalVariables
 from fatigue_pin.ocp.problem import Problem
 
@@ -34,22 +35,6 @@ def rk4(f: ca.Function, x: ca.MX | ca.SX, args: tuple, h: float, steps: int) -> 
         k4 = f(x + h * k3, *args)
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return x
-
-
-def rk4_sensitivities(rates: Callable[[ca.MX, ca.MX], tuple[ca.MX, ca.MX]], y: ca.MX, S: ca.MX, h: float,
-                      substeps: int) -> tuple[ca.MX, ca.MX]:
-    """``substeps`` RK4 steps of length h (s) of the state y (ny,) and of its sensitivities S
-    (ny, n) to n parameters, where ``rates(y, S)`` gives (ydot, dS/dt): the sensitivities step as
-    the state does (forward sensitivities of an explicit RK4, exact to rounding). Returns
-    (y, S) at the end."""
-    for _ in range(substeps):
-        k1, d1 = rates(y, S)
-        k2, d2 = rates(y + h / 2 * k1, S + h / 2 * d1)
-        k3, d3 = rates(y + h / 2 * k2, S + h / 2 * d2)
-        k4, d4 = rates(y + h * k3, S + h * d3)
-        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        S = S + h / 6 * (d1 + 2 * d2 + 2 * d3 + d4)
-    return y, S
 
 
 class IntervalFunctions:
@@ -243,6 +228,8 @@ class IntervalFunctions:
         #: ``(y, u, p) -> (ydot, d(ddq)/d(y, u))`` of a torque of (q, qdot, u) alone, for
         #: :meth:`active_sensitivity_jacobian`; None where the torque depends on m
         self._active_stage = None
+        #: ``(y, u, p, lam) -> d2/d(y, u)2 (lam' ddq)`` of that torque, for :meth:`active_adjoint_hessian`
+        self._active_curvature = None
         if ca.depends_on(tau, z[ny:]):
             zs, rates, z0 = z, ca.vertcat(self.f_rb(z[:ny], tau), self.f_fatigue(z[ny:], us, ps)), ca.vertcat(y, m)
         else:
@@ -253,6 +240,10 @@ class IntervalFunctions:
             if L.nq == L.nv and not ca.depends_on(rates, ps):
                 self._active_stage = ca.Function("f_active_stage", [zs, us, ps], [rates, ca.jacobian(rates[L.nq:], ca.vertcat(zs, us))],
                                                  ["y", "u", "p"], ["ydot", "dddq"])
+                lam = ca.SX.sym("lam", L.nv)  # the qdot rows are linear: only ddq's curvature
+                self._active_curvature = ca.Function("f_active_curvature", [zs, us, ps, lam],
+                                                     [ca.hessian(ca.dot(lam, rates[L.nq:]), ca.vertcat(zs, us))[0]],
+                                                     ["y", "u", "p", "lam"], ["H"])
 
         def flow(options: dict) -> tuple[ca.Function, ca.Function]:
             f = ca.Function("f_active", [zs, us, ps], [rates], options)
@@ -310,6 +301,52 @@ class IntervalFunctions:
         names = ["w", *[F.name_in(i) for i in range(F.n_in()) if i not in diff]]
         return ca.Function(JAC_BLOCK + F.name(), [w, *others], [y, J], names, ["y", "J"])
 
+    def active_adjoint_hessian(self, diff: tuple[int, ...], sparsity: ca.Sparsity | None = None) -> ca.Function | None:
+        """``hblk_F_rb_active(w, *others, mu) -> tril(H)``: the exact Hessian block of
+        :attr:`F_rb_active` (H = d2/dw2 mu' y_next) by the second-order adjoint rule of
+        :func:`~fatigue_pin.ocp.sensitivities.rk4_adjoint_hessian`, for a torque of (q, qdot, u)
+        alone (the muscles'), else None: each RK4 stage's curvature of ddq (a Hessian in (q, qdot,
+        u) of one stage, :attr:`_active_curvature`) weighed by the stage's adjoint and carried by
+        its forward sensitivities. The same values as CasADi's Hessian of the flow to rounding,
+        with a fraction of its work and code (docs/muscles.md, "Speed"). ``diff`` as for
+        :meth:`active_sensitivity_jacobian`; ``sparsity``: the output's (lower-triangular)
+        pattern, e.g. CasADi's block's (the values are projected onto it)."""
+        stage, curvature, F = self._active_stage, self._active_curvature, self.F_rb_active
+        if stage is None or curvature is None or F is None or 3 in diff or 0 not in diff:
+            return None
+        nq, ny, nu = self.layout.nq, self.layout.nq + self.layout.nv, F.size1_in(2)
+        sizes = [F.size1_in(i) for i in diff]
+        w = ca.MX.sym("w", sum(sizes))
+        pieces = dict(zip(diff, ca.vertsplit(w, list(np.cumsum([0, *sizes])))))
+        others = [ca.MX.sym(F.name_in(i), F.sparsity_in(i)) for i in range(F.n_in()) if i not in diff]
+        given = dict(zip([i for i in range(F.n_in()) if i not in diff], others))
+        y, u, p = pieces[0], pieces.get(2, given.get(2)), given[3]
+        mu = ca.MX.sym("mu", ny)
+        nr = ny + (nu if 2 in diff else 0)  # the differentiated (y, u)
+        eye = ca.DM.eye(nr)
+        S, C = ca.MX(eye[:ny, :]), (ca.MX(eye[ny:, :]) if 2 in diff else ca.MX(nu, nr))
+
+        def first(Z: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
+            ydot, dddq = stage(Z, u, p)
+            gz = ca.vertcat(ca.horzcat(ca.MX(nq, nq), ca.MX(ca.DM.eye(nq))), dddq[:, :ny])
+            return ydot, gz, ca.vertcat(ca.MX(nq, nu), dddq[:, ny:])
+
+        H = rk4_adjoint_hessian(first, lambda Z, lam: curvature(Z, u, p, lam[nq:]), y, S, C, mu, self._h, self.substeps)
+        # into the rows and columns of w: m's are structural zeros (the flow does not depend on it)
+        rows = {0: list(range(ny)), 2: list(range(ny, nr))}
+        place, offset = [], 0
+        for i, n in zip(diff, sizes):
+            if i in rows:
+                place += list(range(offset, offset + n))
+            offset += n
+        full = ca.MX(offset, offset)
+        full[place, place] = H
+        out = ca.tril(full)
+        if sparsity is not None:
+            out = ca.project(out, sparsity)
+        names = ["w", *[F.name_in(i) for i in range(F.n_in()) if i not in diff], "mu"]
+        return ca.Function(HESS_BLOCK + F.name(), [w, *others, mu], [out], names, ["H"])
+
     def rigid_body_step(self, y: ca.MX, m: ca.MX, u: ca.MX, p: ca.MX, T: ca.MX | None = None,
                         call: Callable[..., ca.MX] | None = None) -> ca.MX:
         """(q, qdot) after every interval, (nq + nv, K), from y (nq + nv, K), fatigue states m
@@ -352,8 +389,11 @@ class IntervalFunctions:
                 ready = self.active_sensitivity_jacobian(diff) or block_functions(self._F_rb_active_jacobian, diff, hessian=False).jac
             # gauss-newton drops the rigid body's second derivatives, with a state-dependent torque too
             exact = not (f.name() in ("F_rb", "F_rb_active") and hessian == "gauss-newton")
+            # the muscles' exact Hessian block by the stages' adjoints (active_adjoint_hessian)
+            curvature = self.active_adjoint_hessian(diff) if f.name() == "F_rb_active" and hessian == "exact" else None
             self.blocks[f.name()] = block_functions(f, diff, hessian=exact,
-                                                    hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=ready)
+                                                    hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=ready,
+                                                    hessian_block=curvature)
         self.blocks_hessian = hessian
 
     def block_functions(self) -> list[ca.Function]:

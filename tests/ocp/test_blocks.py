@@ -293,3 +293,39 @@ def test_a_block_whose_calls_are_too_large_is_kept_as_mx_without_expanding():
     kept = blocks._maybe_expanded(big)
     assert kept is big and not kept.is_a("SXFunction")
     assert np.allclose(np.asarray(kept(np.arange(4.0))), np.asarray(big.expand()(np.arange(4.0))))
+
+
+def test_the_muscle_flows_adjoint_hessian_is_casadis(tmp_path):
+    """Muscles: the exact Hessian block of ``F_rb_active`` by the stages' adjoints
+    (IntervalFunctions.active_adjoint_hessian, ocp/sensitivities.py) equals CasADi's Hessian of
+    mu' F_rb_active at a random point, with the fatigue states' rows and columns structurally
+    zero; the exact Hessian's blocks take it."""
+    from conftest import muscle_curl, two_muscle_file
+
+    from fatigue_pin.ocp.intervals import IntervalFunctions
+
+    study = muscle_curl(two_muscle_file(tmp_path), **{"task.intervals_per_cycle": 20})
+    fn = IntervalFunctions(study.problem(), study.transcription(), fatigue_calls=True)
+    F = fn.F_rb_active
+    diff = (0, 1, 2)
+    hess = fn.active_adjoint_hessian(diff)
+    assert hess is not None and fn.active_adjoint_hessian((1, 2)) is None
+    sizes = [F.size1_in(i) for i in diff]
+    w, p, mu = ca.MX.sym("w", sum(sizes)), ca.MX.sym("p", F.sparsity_in(3)), ca.MX.sym("mu", 4)
+    y, m, u = ca.vertsplit(w, list(np.cumsum([0, *sizes])))
+    ref = ca.Function("ref", [w, p, mu], [ca.hessian(ca.dot(mu, F(y, m, u, p)), w)[0]])
+    rng = np.random.default_rng(8)
+    x0 = study.problem().initial_state()
+    wv = np.r_[x0[:4] + 0.1 * rng.normal(size=4), x0[4:4 + sizes[1]], rng.uniform(0, 1, sizes[2])]
+    pv, mv = rng.uniform(0.5, 2.0, F.sparsity_in(3).numel()), rng.normal(size=4)
+    R = np.tril(np.asarray(ca.densify(ref(wv, pv, mv))))
+    M = np.asarray(ca.densify(hess(wv, pv, mv)))
+    assert np.abs(R).max() > 1.0 and np.allclose(M, R, rtol=1e-10, atol=1e-11 * np.abs(R).max())
+    m_rows = slice(sizes[0], sizes[0] + sizes[1])
+    pattern = np.zeros(M.shape, bool)
+    sp = hess.sparsity_out(0)
+    pattern[sp.row(), sp.get_col()] = True
+    assert not pattern[m_rows, :].any() and not pattern[:, m_rows].any()
+    fn.build_blocks({"F_rb_active": diff}, "exact")
+    assert fn.blocks["F_rb_active"].hess.name() == "hblk_F_rb_active"
+    assert np.allclose(np.asarray(ca.densify(fn.blocks["F_rb_active"].hess(wv, pv, mv))), M, rtol=0, atol=0)
