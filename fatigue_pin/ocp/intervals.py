@@ -98,8 +98,16 @@ class IntervalFunctions:
             ddq, ddq_dq, ddq_dv, minv = derivatives(y[:nq], y[nq:], tau)  # one pass: ddq shares its terms
             self.f_rb_derivatives = ca.Function("f_rb_derivatives", [y, tau], [ca.vertcat(y[nq:], ddq), ddq_dq, ddq_dv, minv],
                                                 ["y", "tau"], ["ydot", "ddq_dq", "ddq_dv", "Minv"])
+        #: ``(y, tau, lam) -> d2/d(y, tau)2 (lam' ddq)`` (SX), for :meth:`rb_adjoint_hessian`
+        lam = ca.SX.sym("lam", nv)
+        self._rb_curvature = ca.Function("f_rb_curvature", [y, tau, lam],
+                                         [ca.hessian(ca.dot(lam, model.aba(y[:nq], y[nq:], tau)), ca.vertcat(y, tau))[0]],
+                                         ["y", "tau", "lam"], ["H"]) if nq == nv else None
         self._h = h
         self.substeps = substeps
+        #: the torque halves' exact Hessian block of F_rb by the stages' adjoints
+        #: (:meth:`rb_adjoint_hessian`) instead of CasADi's
+        self.adjoint_hessian = True
 
         self.actuators = actuators
         m = ca.SX.sym("m", actuators.n_states)
@@ -168,6 +176,37 @@ class IntervalFunctions:
 
         y, S = rk4_sensitivities(stage, y, S, self._h, self.substeps)
         return ca.Function(JAC_BLOCK + "F_rb", [w], [y, S], ["w"], ["y", "J"])
+
+    def rb_adjoint_hessian(self) -> ca.Function | None:
+        """``hblk_F_rb(w, mu) -> tril(H)`` with w = (y, tau): the exact Hessian block of
+        :attr:`F_rb` (H = d2/dw2 mu' y_next) by the second-order adjoint rule of
+        :func:`~fatigue_pin.ocp.sensitivities.rk4_adjoint_hessian`: each RK4 stage's curvature of
+        ABA in (q, qdot, tau) (:attr:`_rb_curvature`) weighed by the stage's adjoint and carried by
+        its forward sensitivities (Pinocchio's analytical first derivatives where the model has
+        them). The same values as CasADi's Hessian of the flow to rounding. None where nq != nv."""
+        if self._rb_curvature is None:
+            return None
+        nq, nv = self.layout.nq, self.layout.nv
+        ny = nq + nv
+        w, mu = ca.MX.sym("w", ny + nv), ca.MX.sym("mu", ny)
+        y, tau = w[:ny], w[ny:]
+        eye = ca.DM.eye(ny + nv)
+        if self.f_rb_derivatives is not None:
+            stage = self.f_rb_derivatives
+        else:
+            ys, taus = ca.SX.sym("y", ny), ca.SX.sym("tau", nv)
+            ddq = self.f_rb(ys, taus)[nq:]
+            stage = ca.Function("f_rb_first", [ys, taus], [self.f_rb(ys, taus), ca.jacobian(ddq, ys[:nq]), ca.jacobian(ddq, ys[nq:]),
+                                                             ca.jacobian(ddq, taus)])
+
+        def first(Z: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
+            ydot, dq, dv, minv = stage(Z, tau)
+            gz = ca.vertcat(ca.horzcat(ca.MX(nq, nq), ca.MX(ca.DM.eye(nq))), ca.horzcat(dq, dv))
+            return ydot, gz, ca.vertcat(ca.MX(nq, nv), minv)
+
+        H = rk4_adjoint_hessian(first, lambda Z, lam: self._rb_curvature(Z, tau, lam[nq:]), y, ca.MX(eye[:ny, :]), ca.MX(eye[ny:, :]),
+                                mu, self._h, self.substeps)
+        return ca.Function(HESS_BLOCK + "F_rb", [w, mu], [ca.tril(H)], ["w", "mu"], ["H"])
 
     #: library functions that only the transcription's constraints evaluate (no other NLP, such
     #: as the moving-horizon estimator's, differentiates them): with derivative blocks they are
@@ -390,7 +429,11 @@ class IntervalFunctions:
             # gauss-newton drops the rigid body's second derivatives, with a state-dependent torque too
             exact = not (f.name() in ("F_rb", "F_rb_active") and hessian == "gauss-newton")
             # the muscles' exact Hessian block by the stages' adjoints (active_adjoint_hessian)
-            curvature = self.active_adjoint_hessian(diff) if f.name() == "F_rb_active" and hessian == "exact" else None
+            curvature = None
+            if hessian == "exact" and f.name() == "F_rb_active":
+                curvature = self.active_adjoint_hessian(diff)
+            elif hessian == "exact" and rb and diff == (0, 1) and self.adjoint_hessian:
+                curvature = self.rb_adjoint_hessian()
             self.blocks[f.name()] = block_functions(f, diff, hessian=exact,
                                                     hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=ready,
                                                     hessian_block=curvature)

@@ -329,3 +329,21 @@ def test_the_muscle_flows_adjoint_hessian_is_casadis(tmp_path):
     fn.build_blocks({"F_rb_active": diff}, "exact")
     assert fn.blocks["F_rb_active"].hess.name() == "hblk_F_rb_active"
     assert np.allclose(np.asarray(ca.densify(fn.blocks["F_rb_active"].hess(wv, pv, mv))), M, rtol=0, atol=0)
+
+
+def test_the_rigid_bodys_adjoint_hessian_is_casadis(arm26):
+    """Torque halves: the exact Hessian block of ``F_rb`` by the stages' adjoints
+    (IntervalFunctions.rb_adjoint_hessian) equals CasADi's Hessian of mu' F_rb at a random point
+    (arm26, Pinocchio's analytical first derivatives), and the exact blocks take it."""
+    study = small_curl(intervals_per_cycle=20)
+    solver = dataclasses.replace(study.solver(), compile=False, derivative_blocks=True, hessian="exact")
+    fn = Ocp(study.problem(arm26), 1, study.transcription(), solver).functions
+    hess = fn.rb_adjoint_hessian()
+    assert fn.blocks["F_rb"].hess.name() == "hblk_F_rb" and fn.blocks["F_rb"].hess.n_instructions() == hess.n_instructions()
+    w, mu = ca.MX.sym("w", 6), ca.MX.sym("mu", 4)
+    ref = ca.Function("ref", [w, mu], [ca.tril(ca.hessian(ca.dot(mu, fn.F_rb(w[:4], w[4:])), w)[0])])
+    rng = np.random.default_rng(9)
+    wv = np.r_[np.array([0.3, 1.2, 0.5, -0.8]) + 0.1 * rng.normal(size=4), 10 * rng.normal(size=2)]
+    mv = rng.normal(size=4)
+    R, M = (np.asarray(ca.densify(f(wv, mv))) for f in (ref, hess))
+    assert np.abs(R).max() > 0.1 and np.allclose(M, R, rtol=1e-10, atol=1e-12 * np.abs(R).max())
