@@ -347,7 +347,7 @@ class IntervalFunctions:
         alone (the muscles'), else None: each RK4 stage's curvature of ddq (a Hessian in (q, qdot,
         u) of one stage, :attr:`_active_curvature`) weighed by the stage's adjoint and carried by
         its forward sensitivities. The same values as CasADi's Hessian of the flow to rounding,
-        with a fraction of its work and code (docs/muscles.md, "Speed"). ``diff`` as for
+        with a fraction of its work and code (docs/ocp.md, "What makes a robot window faster"). ``diff`` as for
         :meth:`active_sensitivity_jacobian`; ``sparsity``: the output's (lower-triangular)
         pattern, e.g. CasADi's block's (the values are projected onto it)."""
         stage, curvature, F = self._active_stage, self._active_curvature, self.F_rb_active

@@ -12,7 +12,8 @@ linear in everything but ``g``. So its derivatives need those of ``g`` alone, at
 
   ``H = sum over stages of D_j' (d2/dv2 kbar_j' g)(Z_j, c) D_j``, ``D_j = [T_j; dc/dw]``, ``v = (z, c)``,
 
-  because every other operation of the flow is linear (docs/muscles.md, "Speed").
+  because every other operation of the flow is linear (docs/ocp.md, "What makes a robot window
+  faster").
 
 CasADi differentiates the whole unrolled flow instead: one forward-over-reverse sweep per
 direction through every stage. Both give the same numbers to rounding.
