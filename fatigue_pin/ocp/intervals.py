@@ -98,16 +98,9 @@ class IntervalFunctions:
             ddq, ddq_dq, ddq_dv, minv = derivatives(y[:nq], y[nq:], tau)  # one pass: ddq shares its terms
             self.f_rb_derivatives = ca.Function("f_rb_derivatives", [y, tau], [ca.vertcat(y[nq:], ddq), ddq_dq, ddq_dv, minv],
                                                 ["y", "tau"], ["ydot", "ddq_dq", "ddq_dv", "Minv"])
-        #: ``(y, tau, lam) -> d2/d(y, tau)2 (lam' ddq)`` (SX), for :meth:`rb_adjoint_hessian`
-        lam = ca.SX.sym("lam", nv)
-        self._rb_curvature = ca.Function("f_rb_curvature", [y, tau, lam],
-                                         [ca.hessian(ca.dot(lam, model.aba(y[:nq], y[nq:], tau)), ca.vertcat(y, tau))[0]],
-                                         ["y", "tau", "lam"], ["H"]) if nq == nv else None
         self._h = h
         self.substeps = substeps
-        #: the torque halves' exact Hessian block of F_rb by the stages' adjoints
-        #: (:meth:`rb_adjoint_hessian`) instead of CasADi's
-        self.adjoint_hessian = True
+
 
         self.actuators = actuators
         m = ca.SX.sym("m", actuators.n_states)
@@ -181,21 +174,23 @@ class IntervalFunctions:
         """``hblk_F_rb(w, mu) -> tril(H)`` with w = (y, tau): the exact Hessian block of
         :attr:`F_rb` (H = d2/dw2 mu' y_next) by the second-order adjoint rule of
         :func:`~fatigue_pin.ocp.sensitivities.rk4_adjoint_hessian`: each RK4 stage's curvature of
-        ABA in (q, qdot, tau) (:attr:`_rb_curvature`) weighed by the stage's adjoint and carried by
+        ABA in (q, qdot, tau) weighed by the stage's adjoint and carried by
         its forward sensitivities (Pinocchio's analytical first derivatives where the model has
         them). The same values as CasADi's Hessian of the flow to rounding. None where nq != nv."""
-        if self._rb_curvature is None:
-            return None
         nq, nv = self.layout.nq, self.layout.nv
+        if nq != nv:
+            return None
         ny = nq + nv
+        ys, taus, lam = ca.SX.sym("y", ny), ca.SX.sym("tau", nv), ca.SX.sym("lam", nv)
+        ddq = self.f_rb(ys, taus)[nq:]
+        curvature = ca.Function("f_rb_curvature", [ys, taus, lam], [ca.hessian(ca.dot(lam, ddq), ca.vertcat(ys, taus))[0]],
+                                ["y", "tau", "lam"], ["H"])
         w, mu = ca.MX.sym("w", ny + nv), ca.MX.sym("mu", ny)
         y, tau = w[:ny], w[ny:]
         eye = ca.DM.eye(ny + nv)
         if self.f_rb_derivatives is not None:
             stage = self.f_rb_derivatives
         else:
-            ys, taus = ca.SX.sym("y", ny), ca.SX.sym("tau", nv)
-            ddq = self.f_rb(ys, taus)[nq:]
             stage = ca.Function("f_rb_first", [ys, taus], [self.f_rb(ys, taus), ca.jacobian(ddq, ys[:nq]), ca.jacobian(ddq, ys[nq:]),
                                                              ca.jacobian(ddq, taus)])
 
@@ -204,7 +199,7 @@ class IntervalFunctions:
             gz = ca.vertcat(ca.horzcat(ca.MX(nq, nq), ca.MX(ca.DM.eye(nq))), ca.horzcat(dq, dv))
             return ydot, gz, ca.vertcat(ca.MX(nq, nv), minv)
 
-        H = rk4_adjoint_hessian(first, lambda Z, lam: self._rb_curvature(Z, tau, lam[nq:]), y, ca.MX(eye[:ny, :]), ca.MX(eye[ny:, :]),
+        H = rk4_adjoint_hessian(first, lambda Z, lam: curvature(Z, tau, lam[nq:]), y, ca.MX(eye[:ny, :]), ca.MX(eye[ny:, :]),
                                 mu, self._h, self.substeps)
         return ca.Function(HESS_BLOCK + "F_rb", [w, mu], [ca.tril(H)], ["w", "mu"], ["H"])
 
@@ -340,7 +335,7 @@ class IntervalFunctions:
         names = ["w", *[F.name_in(i) for i in range(F.n_in()) if i not in diff]]
         return ca.Function(JAC_BLOCK + F.name(), [w, *others], [y, J], names, ["y", "J"])
 
-    def active_adjoint_hessian(self, diff: tuple[int, ...], sparsity: ca.Sparsity | None = None) -> ca.Function | None:
+    def active_adjoint_hessian(self, diff: tuple[int, ...]) -> ca.Function | None:
         """``hblk_F_rb_active(w, *others, mu) -> tril(H)``: the exact Hessian block of
         :attr:`F_rb_active` (H = d2/dw2 mu' y_next) by the second-order adjoint rule of
         :func:`~fatigue_pin.ocp.sensitivities.rk4_adjoint_hessian`, for a torque of (q, qdot, u)
@@ -348,8 +343,8 @@ class IntervalFunctions:
         u) of one stage, :attr:`_active_curvature`) weighed by the stage's adjoint and carried by
         its forward sensitivities. The same values as CasADi's Hessian of the flow to rounding,
         with a fraction of its work and code (docs/ocp.md, "What makes a robot window faster"). ``diff`` as for
-        :meth:`active_sensitivity_jacobian`; ``sparsity``: the output's (lower-triangular)
-        pattern, e.g. CasADi's block's (the values are projected onto it)."""
+        :meth:`active_sensitivity_jacobian`. The fatigue states' rows and columns are
+        structural zeros."""
         stage, curvature, F = self._active_stage, self._active_curvature, self.F_rb_active
         if stage is None or curvature is None or F is None or 3 in diff or 0 not in diff:
             return None
@@ -381,8 +376,6 @@ class IntervalFunctions:
         full = ca.MX(offset, offset)
         full[place, place] = H
         out = ca.tril(full)
-        if sparsity is not None:
-            out = ca.project(out, sparsity)
         names = ["w", *[F.name_in(i) for i in range(F.n_in()) if i not in diff], "mu"]
         return ca.Function(HESS_BLOCK + F.name(), [w, *others, mu], [out], names, ["H"])
 
@@ -432,7 +425,7 @@ class IntervalFunctions:
             curvature = None
             if hessian == "exact" and f.name() == "F_rb_active":
                 curvature = self.active_adjoint_hessian(diff)
-            elif hessian == "exact" and rb and diff == (0, 1) and self.adjoint_hessian:
+            elif hessian == "exact" and rb and diff == (0, 1):
                 curvature = self.rb_adjoint_hessian()
             self.blocks[f.name()] = block_functions(f, diff, hessian=exact,
                                                     hessian_of=approximations.get(f.name(), {}).get(hessian), jacobian=ready,
