@@ -57,7 +57,12 @@ def rk4_adjoint_hessian(first: Callable[[ca.MX], tuple[ca.MX, ca.MX, ca.MX]],
     Args:
         first: ``first(Z) -> (g, dg/dz (ny, ny), dg/dc (ny, nc))`` at a stage point Z.
         second: ``second(Z, lam) -> d2/dv2 (lam' g)`` ((ny + nc)^2, symmetric, full), v = (z, c).
-        y, S, C, mu: as above; mu (ny,) weighs the end state.
+        y: the state at the start (ny,).
+        S: its sensitivity to w (ny, n).
+        C: the sensitivity of c to w (nc, n).
+        mu: the weights of the end state (ny,).
+        h: the substep (s).
+        substeps: RK4 steps over the interval.
     """
     stages = []
     for _ in range(substeps):
