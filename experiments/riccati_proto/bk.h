@@ -1,4 +1,5 @@
-// Partial Bunch-Kaufman LDL^T of a dense symmetric front (full storage, in place): pivots only among
+// Partial Bunch-Kaufman LDL^T of a dense symmetric front (lower triangle read and updated; the
+// upper triangle is left stale, in place): pivots only among
 // the first m indices; the trailing (n-m) block becomes the Schur complement. Rank-1/2 updates loop
 // over the pivot column's nonzeros (slacks and their rows are 1x1 pivots touching a few entries).
 #pragma once
@@ -12,10 +13,17 @@ struct PartialBK {
   std::vector<double> dinv;  // 1x1: 1/d at k; 2x2: inverse entries a,b,c at k,k+1 (stored in dinv[k], dinv[k+1], off[k])
   std::vector<double> off;
   std::vector<int> nz; std::vector<double> l0v, l1v;
+  // symmetric interchange of i and j reading and writing the lower triangle only (the upper is stale)
   static void swap_sym(Eigen::MatrixXd& K, int i, int j) {
     if (i == j) return;
-    K.row(i).swap(K.row(j)); K.col(i).swap(K.col(j));
+    if (i > j) std::swap(i, j);
+    const int n = K.rows();
+    std::swap(K(i, i), K(j, j));
+    for (int c = 0; c < i; ++c) std::swap(K(i, c), K(j, c));
+    for (int c = i + 1; c < j; ++c) std::swap(K(c, i), K(j, c));
+    for (int r = j + 1; r < n; ++r) std::swap(K(r, i), K(r, j));
   }
+  static double low(const Eigen::MatrixXd& K, int i, int j) { return i >= j ? K(i, j) : K(j, i); }
   void factor(Eigen::MatrixXd& K, int m_) {
     n = K.rows(); m = m_; neg = pos = 0; singular = false;
     swp.assign(m, -1); piv2.assign(m, 0); dinv.assign(m, 0); off.assign(m, 0);
@@ -28,7 +36,7 @@ struct PartialBK {
       if (akk >= alpha * colmax) { p = k; }
       else {
         double rowmax = 0;
-        for (int j = k; j < m; ++j) if (j != imax) rowmax = std::max(rowmax, std::abs(K(imax, j)));
+        for (int j = k; j < m; ++j) if (j != imax) rowmax = std::max(rowmax, std::abs(low(K, imax, j)));
         if (akk * rowmax >= alpha * colmax * colmax) p = k;
         else if (std::abs(K(imax, imax)) >= alpha * rowmax) p = imax;
         else { kind = 2; p = imax; }
@@ -42,11 +50,14 @@ struct PartialBK {
         nz.clear(); for (int i = k + 1; i < n; ++i) if (K(i, k) != 0) nz.push_back(i);
         int r = n - k - 1;
         if ((int)nz.size() * 2 > r) {
-          auto col = K.col(k).tail(r);
-          K.bottomRightCorner(r, r).noalias() -= (col * di) * col.transpose();
-          col *= di;
+          // lower triangle only: column j of the trailing block from its diagonal down
+          for (int j = k + 1; j < n; ++j) {
+            const double lj = K(j, k) * di;
+            if (lj != 0) K.col(j).segment(j, n - j).noalias() -= lj * K.col(k).segment(j, n - j);
+          }
+          K.col(k).tail(r) *= di;
         } else {
-          for (int a : nz) { double la = K(a, k) * di; for (int b : nz) K(b, a) -= la * K(b, k); }
+          for (size_t t = 0; t < nz.size(); ++t) { int a = nz[t]; double la = K(a, k) * di; for (size_t u = t; u < nz.size(); ++u) K(nz[u], a) -= la * K(nz[u], k); }
           for (int a : nz) { K(a, k) *= di; }
         }
         ++k;
@@ -63,12 +74,12 @@ struct PartialBK {
           Eigen::MatrixXd W = K.block(k + 2, k, r, 2);
           Eigen::Matrix2d Di; Di << ia, ib, ib, ic;
           Eigen::MatrixXd Lw = W * Di;
-          K.bottomRightCorner(r, r).noalias() -= Lw * W.transpose();
+          for (int j = 0; j < r; ++j) K.col(k + 2 + j).segment(k + 2 + j, r - j).noalias() -= W.bottomRows(r - j) * Lw.row(j).transpose();
           K.block(k + 2, k, r, 2) = Lw;
         } else {
         l0v.resize(nz.size()); l1v.resize(nz.size());
         for (size_t t = 0; t < nz.size(); ++t) { double u = K(nz[t], k), v = K(nz[t], k + 1); l0v[t] = u * ia + v * ib; l1v[t] = u * ib + v * ic; }
-        for (size_t t = 0; t < nz.size(); ++t) { int r = nz[t]; for (int s : nz) K(s, r) -= l0v[t] * K(s, k) + l1v[t] * K(s, k + 1); }
+        for (size_t t = 0; t < nz.size(); ++t) { int r = nz[t]; for (size_t u = t; u < nz.size(); ++u) { int s = nz[u]; K(s, r) -= l0v[t] * K(s, k) + l1v[t] * K(s, k + 1); } }
         for (size_t t = 0; t < nz.size(); ++t) { K(nz[t], k) = l0v[t]; K(nz[t], k + 1) = l1v[t]; }
         }
         k += 2;

@@ -189,7 +189,16 @@ int main(int argc, char** argv) {
         }
         if (s.bk.singular) fb = "zero pivot";
         neg += s.bk.neg;
-        if (m < n) s.S = s.K.bottomRightCorner(n - m, n - m);
+        if (m < n) { s.S = s.K.bottomRightCorner(n - m, n - m); s.S.triangularView<Eigen::StrictlyUpper>() = s.S.transpose(); }
+        if (getenv("DBG3") && rep == 0 && v == atoi(getenv("DBG3")) && m > 0) {  // where is the largest |L| of this stage
+          std::vector<int> perm(n); for (int i = 0; i < n; ++i) perm[i] = i;
+          for (int q = 0; q < m;) { if (!s.bk.piv2[q]) { std::swap(perm[q], perm[s.bk.swp[q]]); ++q; } else { std::swap(perm[q + 1], perm[s.bk.swp[q]]); q += 2; } }
+          int bi = 0, bk_ = 0; double bl = 0;
+          for (int c = 0; c < m; ++c) for (int i = c + 1; i < n; ++i) if (std::abs(s.K(i, c)) > bl) { bl = std::abs(s.K(i, c)); bi = i; bk_ = c; }
+          auto gid = [&](int q) { return q < nf ? s.front[q] : s.J[q - nf]; };
+          int gi = gid(perm[bi]), gk = gid(perm[bk_]);
+          if (bl > 1e3) printf("v%d stage %d |L| %.2e at row %d (%s, global %d typ %d %s) col %d (global %d typ %d %s, 2x2 %d)\n", v, k, bl, bi, bi < m ? "cand" : "rest", gi, typ[gi], gi >= hdr[1] ? "row" : "var", bk_, gk, typ[gk], gk >= hdr[1] ? "row" : "var", (bk_ > 0 && s.bk.piv2[bk_ - 1]) || s.bk.piv2[bk_]);
+        }
         if (getenv("DBG2") && rep == 0 && (getenv("DBGALL") || k % 15 == 0 || k > S - 3)) {
           double lmax = m > 0 ? s.K.leftCols(m).triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff() : 0;
           printf("v%d stage %d m %d n %d |S|max %.2e |L|max %.2e e min %.2e max %.2e\n", v, k, m, n, m < n ? s.S.cwiseAbs().maxCoeff() : 0.0, lmax,
