@@ -13,6 +13,7 @@ struct PartialBK {
   std::vector<double> dinv;  // 1x1: 1/d at k; 2x2: inverse entries a,b,c at k,k+1 (stored in dinv[k], dinv[k+1], off[k])
   std::vector<double> off;
   std::vector<int> nz; std::vector<double> l0v, l1v;
+  std::vector<int> cptr, cend, cidx;  // per step: the column's nonzero rows below the pivot block if it was sparse (cptr[k] < 0: dense)
   // symmetric interchange of i and j reading and writing the lower triangle only (the upper is stale)
   static void swap_sym(Eigen::MatrixXd& K, int i, int j) {
     if (i == j) return;
@@ -26,7 +27,7 @@ struct PartialBK {
   static double low(const Eigen::MatrixXd& K, int i, int j) { return i >= j ? K(i, j) : K(j, i); }
   void factor(Eigen::MatrixXd& K, int m_) {
     n = K.rows(); m = m_; neg = pos = 0; singular = false;
-    swp.assign(m, -1); piv2.assign(m, 0); dinv.assign(m, 0); off.assign(m, 0);
+    swp.assign(m, -1); piv2.assign(m, 0); dinv.assign(m, 0); off.assign(m, 0); cptr.assign(m, -1); cend.assign(m, -1); cidx.clear();
     const double alpha = (1 + std::sqrt(17.0)) / 8;
     int k = 0;
     while (k < m) {
@@ -57,6 +58,7 @@ struct PartialBK {
           }
           K.col(k).tail(r) *= di;
         } else {
+          cptr[k] = 0;  // sparse: its row list is taken at the end (later interchanges move rows)
           for (size_t t = 0; t < nz.size(); ++t) { int a = nz[t]; double la = K(a, k) * di; for (size_t u = t; u < nz.size(); ++u) K(nz[u], a) -= la * K(nz[u], k); }
           for (int a : nz) { K(a, k) *= di; }
         }
@@ -85,6 +87,15 @@ struct PartialBK {
         k += 2;
       }
     }
+    build_lists(K);
+  }
+  void build_lists(const Eigen::MatrixXd& K) {
+    cidx.clear();
+    for (int k = 0; k < m; ++k) if (cptr[k] >= 0) {
+      cptr[k] = cidx.size();
+      for (int i = k + 1; i < n; ++i) if (K(i, k) != 0) cidx.push_back(i);
+      cend[k] = cidx.size();
+    }
   }
   // forward: apply swaps and L^{-1} to front vector y (length n); then y[0..m) *= D^{-1}
   template <class V> void forward(V& y) const {
@@ -92,7 +103,10 @@ struct PartialBK {
     for (int k = 0; k < m;) {
       if (!piv2[k]) {
         double yk = y[k];
-        if (yk != 0) for (int i = k + 1; i < n; ++i) y[i] -= L(i, k) * yk;
+        if (yk != 0) {
+          if (cptr[k] >= 0) { int e = cend[k]; for (int t = cptr[k]; t < e; ++t) y[cidx[t]] -= L(cidx[t], k) * yk; }
+          else for (int i = k + 1; i < n; ++i) y[i] -= L(i, k) * yk;
+        }
         ++k;
       } else {
         double y0 = y[k], y1 = y[k + 1];
@@ -111,7 +125,10 @@ struct PartialBK {
     while (k >= 0) {
       bool two = (k >= 1 && piv2[k - 1]);
       if (!two) {
-        double s = y[k]; for (int i = k + 1; i < n; ++i) s -= L(i, k) * y[i]; y[k] = s;
+        double s = y[k];
+        if (cptr[k] >= 0) { int e = cend[k]; for (int t = cptr[k]; t < e; ++t) s -= L(cidx[t], k) * y[cidx[t]]; }
+        else for (int i = k + 1; i < n; ++i) s -= L(i, k) * y[i];
+        y[k] = s;
         k -= 1;
       } else {
         int j = k - 1; double s0 = y[j], s1 = y[k];

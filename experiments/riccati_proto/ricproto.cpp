@@ -147,8 +147,10 @@ int main(int argc, char** argv) {
         auto& s = st[k];
         int nf = s.front.size(), nJ = s.J.size(), n = nf + nJ;
         int m = (k == 0) ? n : (int)s.loc.size();
-        s.K.setZero(n, n);
-        for (auto& q : s.ent) { s.K(q[0], q[1]) += A[q[2]]; if (q[0] != q[1]) s.K(q[1], q[0]) += A[q[2]]; }
+        // lower triangle only (bk.h reads nothing above the diagonal)
+        if (s.K.rows() != n) s.K.resize(n, n);
+        s.K.triangularView<Eigen::Lower>().setZero();
+        for (auto& q : s.ent) s.K(q[0], q[1]) += A[q[2]];
         if (k < S) {
           // pair step of (x_{k+1}, lam_k): contributions to this front
           int nl = s.lam.size();
@@ -168,7 +170,7 @@ int main(int argc, char** argv) {
           Mat Tt = T.transpose();
           for (auto& q : s.cent) {
             double c = A[q[2]] / s.e[q[0]];
-            s.K.col(q[1]) += c * Tt.col(q[0]);
+            s.K.col(q[1]).tail(n - q[1]) += c * Tt.col(q[0]).tail(n - q[1]);
           }
           const auto& Jp = s.Jpos;
           for (size_t a = 0; a < Jp.size(); ++a) {
