@@ -13,6 +13,8 @@ struct PartialBK {
   std::vector<double> dinv;  // 1x1: 1/d at k; 2x2: inverse entries a,b,c at k,k+1 (stored in dinv[k], dinv[k+1], off[k])
   std::vector<double> off;
   std::vector<int> nz; std::vector<double> l0v, l1v;
+  bool blocked = getenv("BLOCKED") != nullptr;  // experiment: rest rows by one triangular solve + product at the end (slower here, see README)
+  Eigen::MatrixXd X;
   std::vector<int> cptr, cend, cidx;  // per step: the column's nonzero rows below the pivot block if it was sparse (cptr[k] < 0: dense)
   // symmetric interchange of i and j reading and writing the lower triangle only (the upper is stale)
   static void swap_sym(Eigen::MatrixXd& K, int i, int j) {
@@ -29,6 +31,7 @@ struct PartialBK {
     n = K.rows(); m = m_; neg = pos = 0; singular = false;
     swp.assign(m, -1); piv2.assign(m, 0); dinv.assign(m, 0); off.assign(m, 0); cptr.assign(m, -1); cend.assign(m, -1); cidx.clear();
     const double alpha = (1 + std::sqrt(17.0)) / 8;
+    const int nu = blocked ? m : n;  // rows updated during the pivot phase
     int k = 0;
     while (k < m) {
       double akk = std::abs(K(k, k)); int imax = -1; double colmax = 0;
@@ -48,15 +51,15 @@ struct PartialBK {
         if (d == 0 || !std::isfinite(d)) { singular = true; return; }
         (d < 0 ? neg : pos)++;
         double di = 1 / d; dinv[k] = di;
-        nz.clear(); for (int i = k + 1; i < n; ++i) if (K(i, k) != 0) nz.push_back(i);
-        int r = n - k - 1;
+        nz.clear(); for (int i = k + 1; i < nu; ++i) if (K(i, k) != 0) nz.push_back(i);
+        int r = nu - k - 1;
         if ((int)nz.size() * 2 > r) {
           // lower triangle only: column j of the trailing block from its diagonal down
-          for (int j = k + 1; j < n; ++j) {
+          for (int j = k + 1; j < nu; ++j) {
             const double lj = K(j, k) * di;
-            if (lj != 0) K.col(j).segment(j, n - j).noalias() -= lj * K.col(k).segment(j, n - j);
+            if (lj != 0) K.col(j).segment(j, nu - j).noalias() -= lj * K.col(k).segment(j, nu - j);
           }
-          K.col(k).tail(r) *= di;
+          K.col(k).segment(k + 1, r) *= di;
         } else {
           cptr[k] = 0;  // sparse: its row list is taken at the end (later interchanges move rows)
           for (size_t t = 0; t < nz.size(); ++t) { int a = nz[t]; double la = K(a, k) * di; for (size_t u = t; u < nz.size(); ++u) K(nz[u], a) -= la * K(nz[u], k); }
@@ -70,13 +73,13 @@ struct PartialBK {
         if (det < 0) { ++neg; ++pos; } else if (a + c < 0) neg += 2; else pos += 2;
         double ia = c / det, ib = -b / det, ic = a / det;
         dinv[k] = ia; off[k] = ib; dinv[k + 1] = ic;
-        nz.clear(); for (int i = k + 2; i < n; ++i) if (K(i, k) != 0 || K(i, k + 1) != 0) nz.push_back(i);
-        int r = n - k - 2;
+        nz.clear(); for (int i = k + 2; i < nu; ++i) if (K(i, k) != 0 || K(i, k + 1) != 0) nz.push_back(i);
+        int r = nu - k - 2;
         if ((int)nz.size() * 2 > r) {
           Eigen::MatrixXd W = K.block(k + 2, k, r, 2);
           Eigen::Matrix2d Di; Di << ia, ib, ib, ic;
           Eigen::MatrixXd Lw = W * Di;
-          for (int j = 0; j < r; ++j) K.col(k + 2 + j).segment(k + 2 + j, r - j).noalias() -= W.bottomRows(r - j) * Lw.row(j).transpose();
+          for (int j = 0; j < r; ++j) { const double a0 = Lw(j, 0), a1 = Lw(j, 1); K.col(k + 2 + j).segment(k + 2 + j, r - j) -= a0 * W.col(0).tail(r - j) + a1 * W.col(1).tail(r - j); }
           K.block(k + 2, k, r, 2) = Lw;
         } else {
         l0v.resize(nz.size()); l1v.resize(nz.size());
@@ -84,8 +87,22 @@ struct PartialBK {
         for (size_t t = 0; t < nz.size(); ++t) { int r = nz[t]; for (size_t u = t; u < nz.size(); ++u) { int s = nz[u]; K(s, r) -= l0v[t] * K(s, k) + l1v[t] * K(s, k + 1); } }
         for (size_t t = 0; t < nz.size(); ++t) { K(nz[t], k) = l0v[t]; K(nz[t], k + 1) = l1v[t]; }
         }
+        if (blocked) K(k + 1, k) = 0;  // unit lower L with 2x2 identity blocks for the triangular solve
         k += 2;
       }
+    }
+    if (blocked && n > m) {
+      // rest rows at once: X = K_rl P^T L^{-T}, L_rl = X D^{-1}, S = K_rr - L_rl X^T (lower)
+      const int r = n - m;
+      auto Lmm = K.topLeftCorner(m, m).triangularView<Eigen::UnitLower>();
+      X = K.bottomLeftCorner(r, m);
+      Lmm.transpose().solveInPlace<Eigen::OnTheRight>(X);
+      auto Lr = K.bottomLeftCorner(r, m);
+      for (int q = 0; q < m;) {
+        if (!piv2[q]) { Lr.col(q) = X.col(q) * dinv[q]; ++q; }
+        else { Lr.col(q) = X.col(q) * dinv[q] + X.col(q + 1) * off[q]; Lr.col(q + 1) = X.col(q) * off[q] + X.col(q + 1) * dinv[q + 1]; q += 2; }
+      }
+      K.bottomRightCorner(r, r).triangularView<Eigen::Lower>() -= Lr * X.transpose();
     }
     build_lists(K);
   }

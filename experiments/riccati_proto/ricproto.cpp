@@ -124,6 +124,7 @@ int main(int argc, char** argv) {
   }
   for (auto& s : st) for (int x : s.eslot) if (x < 0) { printf("FALLBACK: missing E entry\n"); return 2; }
 
+  if (getenv("SIZES")) { long c = 0, f = 0; for (int k = 0; k < S; ++k) { c += st[k].cent.size(); f += st[k].front.size() + st[k].J.size(); } printf("nnz(C) total %ld, mean %.1f per stage; mean front %.1f\n", c, (double)c / S, (double)f / S); }
   double tf_all = 0; std::vector<double> tfm, tsm;
   int worst_fb = 0;
   for (int v = 0; v < nvals; ++v) {
