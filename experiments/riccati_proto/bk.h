@@ -13,8 +13,8 @@ struct PartialBK {
   std::vector<double> dinv;  // 1x1: 1/d at k; 2x2: inverse entries a,b,c at k,k+1 (stored in dinv[k], dinv[k+1], off[k])
   std::vector<double> off;
   std::vector<int> nz; std::vector<double> l0v, l1v;
-  bool blocked = getenv("BLOCKED") != nullptr;  // experiment: rest rows by one triangular solve + product at the end (slower here, see README)
-  Eigen::MatrixXd X;
+  bool blocked = getenv("UNBLOCKED") == nullptr;  // default: rest rows of the dense pivots by one triangular solve + product (README)
+  Eigen::MatrixXd X; int k0 = 0;
   std::vector<int> cptr, cend, cidx;  // per step: the column's nonzero rows below the pivot block if it was sparse (cptr[k] < 0: dense)
   // symmetric interchange of i and j reading and writing the lower triangle only (the upper is stale)
   static void swap_sym(Eigen::MatrixXd& K, int i, int j) {
@@ -31,7 +31,9 @@ struct PartialBK {
     n = K.rows(); m = m_; neg = pos = 0; singular = false;
     swp.assign(m, -1); piv2.assign(m, 0); dinv.assign(m, 0); off.assign(m, 0); cptr.assign(m, -1); cend.assign(m, -1); cidx.clear();
     const double alpha = (1 + std::sqrt(17.0)) / 8;
-    const int nu = blocked ? m : n;  // rows updated during the pivot phase
+    // BLOCKED: pivots taken before the first dense column update all n rows (sparse, cheap); from the
+    // first dense pivot on (k0), updates stay within the candidates and the rest rows are done at the end.
+    int nu = n; k0 = m;
     int k = 0;
     while (k < m) {
       double akk = std::abs(K(k, k)); int imax = -1; double colmax = 0;
@@ -51,6 +53,7 @@ struct PartialBK {
         if (d == 0 || !std::isfinite(d)) { singular = true; return; }
         (d < 0 ? neg : pos)++;
         double di = 1 / d; dinv[k] = di;
+        if (blocked && nu == n) { int c = 0; for (int i = k + 1; i < m; ++i) c += K(i, k) != 0; if (c * 2 > m - k - 1) { nu = m; k0 = k; } }
         nz.clear(); for (int i = k + 1; i < nu; ++i) if (K(i, k) != 0) nz.push_back(i);
         int r = nu - k - 1;
         if ((int)nz.size() * 2 > r) {
@@ -73,6 +76,7 @@ struct PartialBK {
         if (det < 0) { ++neg; ++pos; } else if (a + c < 0) neg += 2; else pos += 2;
         double ia = c / det, ib = -b / det, ic = a / det;
         dinv[k] = ia; off[k] = ib; dinv[k + 1] = ic;
+        if (blocked && nu == n) { int c = 0; for (int i = k + 2; i < m; ++i) c += K(i, k) != 0 || K(i, k + 1) != 0; if (c * 2 > m - k - 2) { nu = m; k0 = k; } }
         nz.clear(); for (int i = k + 2; i < nu; ++i) if (K(i, k) != 0 || K(i, k + 1) != 0) nz.push_back(i);
         int r = nu - k - 2;
         if ((int)nz.size() * 2 > r) {
@@ -91,16 +95,17 @@ struct PartialBK {
         k += 2;
       }
     }
-    if (blocked && n > m) {
-      // rest rows at once: X = K_rl P^T L^{-T}, L_rl = X D^{-1}, S = K_rr - L_rl X^T (lower)
-      const int r = n - m;
-      auto Lmm = K.topLeftCorner(m, m).triangularView<Eigen::UnitLower>();
-      X = K.bottomLeftCorner(r, m);
+    if (blocked && n > m && k0 < m) {
+      // rest rows of the deferred pivots k0..m at once: X = K_rl P^T L^{-T}, L_rl = X D^{-1}, S = K_rr - L_rl X^T (lower)
+      const int r = n - m, w = m - k0;
+      auto Lmm = K.block(k0, k0, w, w).triangularView<Eigen::UnitLower>();
+      X = K.block(m, k0, r, w);
       Lmm.transpose().solveInPlace<Eigen::OnTheRight>(X);
-      auto Lr = K.bottomLeftCorner(r, m);
-      for (int q = 0; q < m;) {
-        if (!piv2[q]) { Lr.col(q) = X.col(q) * dinv[q]; ++q; }
-        else { Lr.col(q) = X.col(q) * dinv[q] + X.col(q + 1) * off[q]; Lr.col(q + 1) = X.col(q) * off[q] + X.col(q + 1) * dinv[q + 1]; q += 2; }
+      auto Lr = K.block(m, k0, r, w);
+      for (int q = 0; q < w;) {
+        const int g = q + k0;
+        if (!piv2[g]) { Lr.col(q) = X.col(q) * dinv[g]; ++q; }
+        else { Lr.col(q) = X.col(q) * dinv[g] + X.col(q + 1) * off[g]; Lr.col(q + 1) = X.col(q) * off[g] + X.col(q + 1) * dinv[g + 1]; q += 2; }
       }
       K.bottomRightCorner(r, r).triangularView<Eigen::Lower>() -= Lr * X.transpose();
     }
