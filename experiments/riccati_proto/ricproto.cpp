@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
   for (auto& s : st) for (int x : s.eslot) if (x < 0) { printf("FALLBACK: missing E entry\n"); return 2; }
 
   if (getenv("SIZES")) { long c = 0, f = 0; for (int k = 0; k < S; ++k) { c += st[k].cent.size(); f += st[k].front.size() + st[k].J.size(); } printf("nnz(C) total %ld, mean %.1f per stage; mean front %.1f\n", c, (double)c / S, (double)f / S); }
+  Mat T, G, Tt; Vec fv, gv, a, l, u, zJ;  // work buffers reused across stages and factorisations
   double tf_all = 0; std::vector<double> tfm, tsm;
   int worst_fb = 0;
   for (int v = 0; v < nvals; ++v) {
@@ -160,15 +161,15 @@ int main(int argc, char** argv) {
           for (int i = 0; i < nl; ++i) s.e[i] = A[s.eslot[i]];
           const Mat& P = st[k + 1].S;  // (nx+nJ') over next stage's [xs; J]; J ⊂ this front
           int nx = nl;
-          Mat T = Mat::Zero(nx, n);     // P Ct
-          Mat G = Mat::Zero(st[k + 1].J.size(), n);  // B^T Ct
+          T.setZero(nx, n);     // P Ct
+          G.setZero(st[k + 1].J.size(), n);  // B^T Ct
           for (auto& q : s.cent) {
             double c = A[q[2]] / s.e[q[0]];
             T.col(q[1]) += P.col(q[0]).head(nx) * c;
             if (G.rows()) G.col(q[1]) += P.row(q[0]).tail(G.rows()).transpose() * c;
           }
           // K(lower) += Ct^T T  (full symmetric update done in full then use lower)
-          Mat Tt = T.transpose();
+          Tt = T.transpose();
           for (auto& q : s.cent) {
             double c = A[q[2]] / s.e[q[0]];
             s.K.col(q[1]).tail(n - q[1]) += c * Tt.col(q[0]).tail(n - q[1]);
@@ -230,12 +231,12 @@ int main(int argc, char** argv) {
         if (k > 0) {  // pair (x_k, lam_{k-1}): rhs of stage k-1's front -= B^T a + C^T l
           auto& p = st[k - 1];
           int nx = p.lam.size();
-          Vec fv(nx), gv(nx);
+          fv.resize(nx); gv.resize(nx);
           for (int i = 0; i < nx; ++i) { fv[i] = r[s.xs[i]]; gv[i] = r[p.lam[i]]; }
-          Vec a = gv.cwiseQuotient(p.e);
-          Vec l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
+          a = gv.cwiseQuotient(p.e);
+          l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
           for (auto& q : p.cent) r[p.front[q[1]]] -= A[q[2]] * l[q[0]];
-          if (nJ) { Vec u = s.S.block(0, nx, nx, nJ).transpose() * a; for (int j = 0; j < nJ; ++j) r[s.J[j]] -= u[j]; }
+          if (nJ) { u = s.S.block(0, nx, nx, nJ).transpose() * a; for (int j = 0; j < nJ; ++j) r[s.J[j]] -= u[j]; }
         }
       }
       // back substitution
@@ -246,12 +247,12 @@ int main(int argc, char** argv) {
         if (k > 0) {
           auto& p = st[k - 1];
           int nx = p.lam.size();
-          Vec fv(nx), gv(nx);
+          fv.resize(nx); gv.resize(nx);
           for (int i = 0; i < nx; ++i) { fv[i] = r[s.xs[i]]; gv[i] = r[p.lam[i]]; }
           for (auto& q : p.cent) gv[q[0]] -= A[q[2]] * x[p.front[q[1]]];
-          if (nJ) { Vec zJ(nJ); for (int j = 0; j < nJ; ++j) zJ[j] = x[s.J[j]]; fv -= s.S.block(0, nx, nx, nJ) * zJ; }
-          Vec a = gv.cwiseQuotient(p.e);
-          Vec l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
+          if (nJ) { zJ.resize(nJ); for (int j = 0; j < nJ; ++j) zJ[j] = x[s.J[j]]; fv -= s.S.block(0, nx, nx, nJ) * zJ; }
+          a = gv.cwiseQuotient(p.e);
+          l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
           for (int i = 0; i < nx; ++i) { x[s.xs[i]] = a[i]; x[p.lam[i]] = l[i]; }
         }
         for (int i = m; i < n; ++i) s.yl[i] = x[i < nf ? s.front[i] : s.J[i - nf]];
