@@ -124,6 +124,8 @@ int main(int argc, char** argv) {
   }
   for (auto& s : st) for (int x : s.eslot) if (x < 0) { printf("FALLBACK: missing E entry\n"); return 2; }
 
+  if (getenv("SIZES")) { long c = 0, f = 0; for (int k = 0; k < S; ++k) { c += st[k].cent.size(); f += st[k].front.size() + st[k].J.size(); } printf("nnz(C) total %ld, mean %.1f per stage; mean front %.1f\n", c, (double)c / S, (double)f / S); }
+  Mat T, G, Tt; Vec fv, gv, a, l, u, zJ;  // work buffers reused across stages and factorisations
   double tf_all = 0; std::vector<double> tfm, tsm;
   int worst_fb = 0;
   for (int v = 0; v < nvals; ++v) {
@@ -147,8 +149,10 @@ int main(int argc, char** argv) {
         auto& s = st[k];
         int nf = s.front.size(), nJ = s.J.size(), n = nf + nJ;
         int m = (k == 0) ? n : (int)s.loc.size();
-        s.K.setZero(n, n);
-        for (auto& q : s.ent) { s.K(q[0], q[1]) += A[q[2]]; if (q[0] != q[1]) s.K(q[1], q[0]) += A[q[2]]; }
+        // lower triangle only (bk.h reads nothing above the diagonal)
+        if (s.K.rows() != n) s.K.resize(n, n);
+        s.K.triangularView<Eigen::Lower>().setZero();
+        for (auto& q : s.ent) s.K(q[0], q[1]) += A[q[2]];
         if (k < S) {
           // pair step of (x_{k+1}, lam_k): contributions to this front
           int nl = s.lam.size();
@@ -157,18 +161,18 @@ int main(int argc, char** argv) {
           for (int i = 0; i < nl; ++i) s.e[i] = A[s.eslot[i]];
           const Mat& P = st[k + 1].S;  // (nx+nJ') over next stage's [xs; J]; J ⊂ this front
           int nx = nl;
-          Mat T = Mat::Zero(nx, n);     // P Ct
-          Mat G = Mat::Zero(st[k + 1].J.size(), n);  // B^T Ct
+          T.setZero(nx, n);     // P Ct
+          G.setZero(st[k + 1].J.size(), n);  // B^T Ct
           for (auto& q : s.cent) {
             double c = A[q[2]] / s.e[q[0]];
             T.col(q[1]) += P.col(q[0]).head(nx) * c;
             if (G.rows()) G.col(q[1]) += P.row(q[0]).tail(G.rows()).transpose() * c;
           }
           // K(lower) += Ct^T T  (full symmetric update done in full then use lower)
-          Mat Tt = T.transpose();
+          Tt = T.transpose();
           for (auto& q : s.cent) {
             double c = A[q[2]] / s.e[q[0]];
-            s.K.col(q[1]) += c * Tt.col(q[0]);
+            s.K.col(q[1]).tail(n - q[1]) += c * Tt.col(q[0]).tail(n - q[1]);
           }
           const auto& Jp = s.Jpos;
           for (size_t a = 0; a < Jp.size(); ++a) {
@@ -189,7 +193,16 @@ int main(int argc, char** argv) {
         }
         if (s.bk.singular) fb = "zero pivot";
         neg += s.bk.neg;
-        if (m < n) s.S = s.K.bottomRightCorner(n - m, n - m);
+        if (m < n) { s.S = s.K.bottomRightCorner(n - m, n - m); s.S.triangularView<Eigen::StrictlyUpper>() = s.S.transpose(); }
+        if (getenv("DBG3") && rep == 0 && v == atoi(getenv("DBG3")) && m > 0) {  // where is the largest |L| of this stage
+          std::vector<int> perm(n); for (int i = 0; i < n; ++i) perm[i] = i;
+          for (int q = 0; q < m;) { if (!s.bk.piv2[q]) { std::swap(perm[q], perm[s.bk.swp[q]]); ++q; } else { std::swap(perm[q + 1], perm[s.bk.swp[q]]); q += 2; } }
+          int bi = 0, bk_ = 0; double bl = 0;
+          for (int c = 0; c < m; ++c) for (int i = c + 1; i < n; ++i) if (std::abs(s.K(i, c)) > bl) { bl = std::abs(s.K(i, c)); bi = i; bk_ = c; }
+          auto gid = [&](int q) { return q < nf ? s.front[q] : s.J[q - nf]; };
+          int gi = gid(perm[bi]), gk = gid(perm[bk_]);
+          if (bl > 1e3) printf("v%d stage %d |L| %.2e at row %d (%s, global %d typ %d %s) col %d (global %d typ %d %s, 2x2 %d)\n", v, k, bl, bi, bi < m ? "cand" : "rest", gi, typ[gi], gi >= hdr[1] ? "row" : "var", bk_, gk, typ[gk], gk >= hdr[1] ? "row" : "var", (bk_ > 0 && s.bk.piv2[bk_ - 1]) || s.bk.piv2[bk_]);
+        }
         if (getenv("DBG2") && rep == 0 && (getenv("DBGALL") || k % 15 == 0 || k > S - 3)) {
           double lmax = m > 0 ? s.K.leftCols(m).triangularView<Eigen::StrictlyLower>().toDenseMatrix().cwiseAbs().maxCoeff() : 0;
           printf("v%d stage %d m %d n %d |S|max %.2e |L|max %.2e e min %.2e max %.2e\n", v, k, m, n, m < n ? s.S.cwiseAbs().maxCoeff() : 0.0, lmax,
@@ -218,12 +231,12 @@ int main(int argc, char** argv) {
         if (k > 0) {  // pair (x_k, lam_{k-1}): rhs of stage k-1's front -= B^T a + C^T l
           auto& p = st[k - 1];
           int nx = p.lam.size();
-          Vec fv(nx), gv(nx);
+          fv.resize(nx); gv.resize(nx);
           for (int i = 0; i < nx; ++i) { fv[i] = r[s.xs[i]]; gv[i] = r[p.lam[i]]; }
-          Vec a = gv.cwiseQuotient(p.e);
-          Vec l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
+          a = gv.cwiseQuotient(p.e);
+          l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
           for (auto& q : p.cent) r[p.front[q[1]]] -= A[q[2]] * l[q[0]];
-          if (nJ) { Vec u = s.S.block(0, nx, nx, nJ).transpose() * a; for (int j = 0; j < nJ; ++j) r[s.J[j]] -= u[j]; }
+          if (nJ) { u = s.S.block(0, nx, nx, nJ).transpose() * a; for (int j = 0; j < nJ; ++j) r[s.J[j]] -= u[j]; }
         }
       }
       // back substitution
@@ -234,12 +247,12 @@ int main(int argc, char** argv) {
         if (k > 0) {
           auto& p = st[k - 1];
           int nx = p.lam.size();
-          Vec fv(nx), gv(nx);
+          fv.resize(nx); gv.resize(nx);
           for (int i = 0; i < nx; ++i) { fv[i] = r[s.xs[i]]; gv[i] = r[p.lam[i]]; }
           for (auto& q : p.cent) gv[q[0]] -= A[q[2]] * x[p.front[q[1]]];
-          if (nJ) { Vec zJ(nJ); for (int j = 0; j < nJ; ++j) zJ[j] = x[s.J[j]]; fv -= s.S.block(0, nx, nx, nJ) * zJ; }
-          Vec a = gv.cwiseQuotient(p.e);
-          Vec l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
+          if (nJ) { zJ.resize(nJ); for (int j = 0; j < nJ; ++j) zJ[j] = x[s.J[j]]; fv -= s.S.block(0, nx, nx, nJ) * zJ; }
+          a = gv.cwiseQuotient(p.e);
+          l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(p.e);
           for (int i = 0; i < nx; ++i) { x[s.xs[i]] = a[i]; x[p.lam[i]] = l[i]; }
         }
         for (int i = m; i < n; ++i) s.yl[i] = x[i < nf ? s.front[i] : s.J[i - nf]];
