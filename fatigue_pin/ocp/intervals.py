@@ -300,6 +300,18 @@ class IntervalFunctions:
                                                   ["y", "m", "u", "p"], ["y_next"])
         return F
 
+    def _active_block_inputs(self, diff: tuple[int, ...]) -> tuple[list[int], ca.MX, list[ca.MX], tuple[ca.MX, ca.MX, ca.MX]]:
+        """The inputs of a block of :attr:`F_rb_active` for the differentiated inputs ``diff``:
+        the sizes of those inputs, w (their concatenation), the other inputs' symbols, and
+        (y, u, p) as pieces of w or as those symbols."""
+        F = self.F_rb_active
+        sizes = [F.size1_in(i) for i in diff]
+        w = ca.MX.sym("w", sum(sizes))
+        pieces = dict(zip(diff, ca.vertsplit(w, list(np.cumsum([0, *sizes])))))
+        others = [ca.MX.sym(F.name_in(i), F.sparsity_in(i)) for i in range(F.n_in()) if i not in diff]
+        given = dict(zip([i for i in range(F.n_in()) if i not in diff], others))
+        return sizes, w, others, (pieces[0], pieces.get(2, given.get(2)), given[3])
+
     def active_sensitivity_jacobian(self, diff: tuple[int, ...]) -> ca.Function | None:
         """``jblk_F_rb_active(w, *others) -> (y_next, J)``: the RK4 of :attr:`F_rb_active` and its
         Jacobian by forward sensitivities, for a torque of (q, qdot, u) alone (the muscles'), else
@@ -316,12 +328,7 @@ class IntervalFunctions:
         if stage is None or F is None or 3 in diff or 0 not in diff:
             return None
         nq, ny, nu = self.layout.nq, self.layout.nq + self.layout.nv, F.size1_in(2)
-        sizes = [F.size1_in(i) for i in diff]
-        w = ca.MX.sym("w", sum(sizes))
-        pieces = dict(zip(diff, ca.vertsplit(w, list(np.cumsum([0, *sizes])))))
-        others = [ca.MX.sym(F.name_in(i), F.sparsity_in(i)) for i in range(F.n_in()) if i not in diff]
-        given = dict(zip([i for i in range(F.n_in()) if i not in diff], others))
-        y, u, p = pieces[0], pieces.get(2, given.get(2)), given[3]
+        sizes, w, others, (y, u, p) = self._active_block_inputs(diff)
         S = ca.MX(ca.DM.eye(ny + nu)[:ny, :])  # dy/d(y, u)
         tail = ca.MX(ca.DM.eye(ny + nu)[ny:, :])  # du/d(y, u)
 
@@ -342,19 +349,14 @@ class IntervalFunctions:
         alone (the muscles'), else None: each RK4 stage's curvature of ddq (a Hessian in (q, qdot,
         u) of one stage, :attr:`_active_curvature`) weighed by the stage's adjoint and carried by
         its forward sensitivities. The same values as CasADi's Hessian of the flow to rounding,
-        with a fraction of its work and code (docs/ocp.md, "What makes a robot window faster"). ``diff`` as for
-        :meth:`active_sensitivity_jacobian`. The fatigue states' rows and columns are
-        structural zeros."""
+        with a fraction of its work and code (docs/ocp.md, "What makes a robot window
+        faster"). ``diff`` as for :meth:`active_sensitivity_jacobian`. The fatigue states' rows
+        and columns are structural zeros."""
         stage, curvature, F = self._active_stage, self._active_curvature, self.F_rb_active
         if stage is None or curvature is None or F is None or 3 in diff or 0 not in diff:
             return None
         nq, ny, nu = self.layout.nq, self.layout.nq + self.layout.nv, F.size1_in(2)
-        sizes = [F.size1_in(i) for i in diff]
-        w = ca.MX.sym("w", sum(sizes))
-        pieces = dict(zip(diff, ca.vertsplit(w, list(np.cumsum([0, *sizes])))))
-        others = [ca.MX.sym(F.name_in(i), F.sparsity_in(i)) for i in range(F.n_in()) if i not in diff]
-        given = dict(zip([i for i in range(F.n_in()) if i not in diff], others))
-        y, u, p = pieces[0], pieces.get(2, given.get(2)), given[3]
+        sizes, w, others, (y, u, p) = self._active_block_inputs(diff)
         mu = ca.MX.sym("mu", ny)
         nr = ny + (nu if 2 in diff else 0)  # the differentiated (y, u)
         eye = ca.DM.eye(nr)
