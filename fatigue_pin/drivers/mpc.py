@@ -22,6 +22,12 @@ leaves the model's joint range (a joint stop). With the plant equal to the model
 r = A n, the plant therefore follows the sliding-horizon run. With ``end = "receding"`` the
 controller instead re-plans until the plant has done ``max_cycles`` cycles (no open-loop tail).
 
+With real-time iterations (``iterations_per_replan``), every re-plan after the first makes a
+bounded number of IPOPT iterations from the plan in force, shifted, and uses its last iterate:
+one plan improved across the re-plans, each re-plan as short as the motion it plans for. Such
+plans do not fail when the plant is spent, so the first cycle the plant misses ends the
+re-planning.
+
 The plant's *repetitions* are its leading cycles whose task error (:func:`task_errors`) is at
 most ``target_tolerance`` and whose every interval follows the exact flow (:meth:`Plant.flow_gap`
 within the gap tolerances of :mod:`fatigue_pin.core.accuracy`, verify's): a cycle is credited only
@@ -32,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -43,7 +50,7 @@ from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.drivers.estimation import ESTIMATORS, History, MheSettings, make_estimator
 from fatigue_pin.drivers.plant import Plant, PlantSettings
 from fatigue_pin.drivers.sliding import SlidingSettings, iteration_limit
-from fatigue_pin.ocp.guesses import shifted_window_guess
+from fatigue_pin.ocp.guesses import shifted_plan_guess, shifted_window_guess
 from fatigue_pin.ocp.problem import Problem
 from fatigue_pin.ocp.solver import SolverOptions
 from fatigue_pin.ocp.task import joint_target_pairs
@@ -52,6 +59,9 @@ from fatigue_pin.ocp.window_budget import WindowBudget, require_window_budget, s
 
 #: How far (rad) the plant's q may be outside the model's joint range before the run ends.
 BOUND_TOLERANCE = 1e-6
+
+#: IPOPT's status of a solve stopped at its iteration limit: a real-time re-plan's usual end.
+BOUNDED_STATUS = "Maximum_Iterations_Exceeded"
 
 #: How max_cycles ends a closed loop (:attr:`MpcSettings.end`).
 MPC_ENDS = ("run-out", "receding")
@@ -82,6 +92,15 @@ class MpcSettings:
             loop) or ``receding`` (re-plan every ``replan_every`` intervals until the plant has
             done ``max_cycles`` cycles; the windows look past it).
         mhe: settings of the moving-horizon estimator.
+        iterations_per_replan: real-time iterations: every re-plan after the first runs at
+            most this many IPOPT iterations, warm-started from the plan in force shifted to the
+            re-plan's node (:func:`~fatigue_pin.ocp.guesses.shifted_plan_guess`, its multipliers
+            too), and its last iterate becomes the plan, converged or not; the plan improves
+            over the re-plans instead of within one. The first plan is solved to convergence
+            (before the motion starts). A re-plan that fails otherwise (an infeasibility,
+            a failed restoration, a non-finite iterate) ends the re-planning, and so does a
+            cycle whose task error exceeds ``target_tolerance``. ``None`` (default): every
+            re-plan is solved to convergence (docs/mpc.md, "Real-time iterations").
     """
 
     replan_every: int | None = None
@@ -91,6 +110,7 @@ class MpcSettings:
     capacity_margin: float = 0.0
     end: str = "run-out"
     mhe: MheSettings = field(default_factory=MheSettings)
+    iterations_per_replan: int | None = None
 
     def __post_init__(self) -> None:
         r = self.replan_every
@@ -111,6 +131,10 @@ class MpcSettings:
             raise ParameterError(f"mpc.end = {self.end!r}: expected one of {list(MPC_ENDS)}")
         if not isinstance(self.mhe, MheSettings):
             raise ParameterError(f"mpc.mhe = {self.mhe!r}: expected MheSettings")
+        it = self.iterations_per_replan
+        if it is not None and (isinstance(it, bool) or not isinstance(it, (int, np.integer)) or it < 1):
+            raise ParameterError(f"mpc.iterations_per_replan = {it!r}: expected an integer number of IPOPT iterations >= 1 "
+                                 "(or none: every re-plan solved to convergence)")
 
 
 def _structure(problem: Problem) -> tuple:
@@ -291,6 +315,12 @@ class ClosedLoop:
                                     window_budget=self.sliding.heat_budget)
         return self._ocps[phase]
 
+    def window_ocps(self) -> None:
+        """Build the window OCP of every phase the re-plans start at (multiples of
+        ``replan_every`` modulo n), as a controller does before the motion starts."""
+        for phase in sorted({(j * self.replan_every) % self.n for j in range(self.n)}):
+            self.window_ocp(phase)
+
     def new_estimator(self):
         return make_estimator(self.mpc.estimator, self.ocp.functions, self.problem.actuators, self.mpc.mhe, self.n)
 
@@ -336,38 +366,38 @@ class ClosedLoop:
             return x_init
         return np.asarray(state.prediction[-1], dtype=float)
 
+    @property
+    def real_time(self) -> bool:
+        """Whether the re-plans after the first are real-time iterations
+        (:attr:`MpcSettings.iterations_per_replan`)."""
+        return self.mpc.iterations_per_replan is not None
+
     def replan(self, state: LoopState, estimator) -> Any:
         """Correct the estimate at the current node and solve the window from it; update
         ``state`` (its table, parameters, plan and ``done``). Returns the solution (None when the
-        window's bounds are empty, so no window can be posed: status ``Plant_Outside_Bounds``)."""
+        window's bounds are empty, so no window can be posed: status ``Plant_Outside_Bounds``).
+        A re-plan's time is the controller's: its guess, its warm start and its solve (and the
+        estimator's, apart)."""
         k = state.node
         m = np.clip(estimator.correct(k, state.history), 0.0, 1.0)
         state.history.m[-1] = m
         est_time = getattr(estimator, "last_wall_time_s", 0.0)
+        ocp = self.window_ocp(k)  # built once per phase, not a re-plan's time (:meth:`window_ocps`)
+        t0 = time.perf_counter()
         x_init = np.concatenate([state.y[-1], self.planned_fatigue(m)])
-        ocp = self.window_ocp(k)
-        if state.plan is None:
-            guess = ocp.initial_guess(x_init)
-        else:
-            x_prev, u_prev, start = state.plan
-            guess = shifted_window_guess(ocp, x_init, x_prev, u_prev, 0, self.sliding.guess_fatigue == "copy",
-                                         intervals=k - start, fatigue=estimator.params)
-        limit = iteration_limit([int(r[5]) for r in state.replans if r[4]], self.sliding, self.solver.max_iter)
         x_end = self.end_reference(state, x_init)
         lo, hi = ocp.state_bounds(x_init, x_end)
         if np.any(lo > hi):  # an end box outside the model's bounds: no window can be posed
-            sol = None
-            status, success, iterations, wall, objective = "Plant_Outside_Bounds", False, 0, 0.0, math.nan
+            sol, status, success, iterations, objective = None, "Plant_Outside_Bounds", False, 0, math.nan
         else:
-            warm = self._warm_start(state, k) if self.sliding.warm_start else None
-            sol, _ = solve_within(ocp, self.window_budget(state, k), x_init=x_init, guess=guess, x_end=x_end, max_iter=limit,
-                                  fatigue=estimator.params, warm=warm, warm_start=warm is not None)
-            status, success, iterations, wall, objective = sol.status, sol.success, sol.iterations, sol.wall_time_s, sol.objective
+            sol = self._solve(state, estimator, ocp, x_init, x_end)
+            status, success, iterations, objective = sol.status, sol.success, sol.iterations, sol.objective
+        wall = time.perf_counter() - t0
         horizon_s = self.replan_every * self.problem.task.dt
         state.replans.append((len(state.replans), k, k % self.n, status.encode()[:40], success, iterations,
                               wall, est_time, objective, (wall + est_time) / horizon_s))
         state.params.append(np.asarray(estimator.params, dtype=float).copy())
-        if success:
+        if success or (sol is not None and self._usable(state, sol)):
             state.plan = (sol.x, sol.u, k)
             state.solution = sol.nlp
         else:
@@ -376,6 +406,35 @@ class ClosedLoop:
         if max_cycles is not None and self.mpc.end == "run-out" and k + self.H >= max_cycles * self.n:
             state.done = True
         return sol
+
+    def _solve(self, state: LoopState, estimator, ocp: Ocp, x_init: np.ndarray, x_end: np.ndarray) -> Any:
+        """The window's solve from ``x_init``: to convergence from the previous plan shifted (the
+        sliding horizon's guess), or, in real time after the first plan, at most
+        ``iterations_per_replan`` IPOPT iterations from the plan in force shifted exactly, with
+        its multipliers."""
+        k = state.node
+        if state.plan is None:
+            guess = ocp.initial_guess(x_init)
+        elif self.real_time:
+            x_prev, u_prev, start = state.plan
+            guess = shifted_plan_guess(ocp, x_init, x_prev, u_prev, k - start, fatigue=estimator.params)
+            return ocp.solve(x_init=x_init, guess=guess, x_end=x_end, max_iter=self.mpc.iterations_per_replan,
+                             fatigue=estimator.params, warm=self._warm_start(state, k), warm_start=True)
+        else:
+            x_prev, u_prev, start = state.plan
+            guess = shifted_window_guess(ocp, x_init, x_prev, u_prev, 0, self.sliding.guess_fatigue == "copy",
+                                         intervals=k - start, fatigue=estimator.params)
+        limit = iteration_limit([int(r[5]) for r in state.replans if r[4]], self.sliding, self.solver.max_iter)
+        warm = self._warm_start(state, k) if self.sliding.warm_start else None
+        sol, _ = solve_within(ocp, self.window_budget(state, k), x_init=x_init, guess=guess, x_end=x_end, max_iter=limit,
+                              fatigue=estimator.params, warm=warm, warm_start=warm is not None)
+        return sol
+
+    def _usable(self, state: LoopState, sol: Any) -> bool:
+        """Whether a real-time re-plan that stopped at its iteration bound becomes the plan: its
+        iterate is finite (a first plan, or one that failed otherwise, is not)."""
+        return (self.real_time and state.plan is not None and sol.status == BOUNDED_STATUS
+                and bool(np.all(np.isfinite(sol.x)) and np.all(np.isfinite(sol.u))))
 
     def window_budget(self, state: LoopState, node: int) -> WindowBudget | None:
         """Under ``heat_budget``, the budget of the window starting at ``node``
@@ -425,6 +484,10 @@ class ClosedLoop:
             h.probes[k + 1] = self.plant.probe(x_next, k + 1)
         if not self.within_bounds(x_next):  # the plant hit a joint stop: the run ends
             state.plan, state.done = None, True
+        elif self.real_time and (k + 1) % self.n == 0 and not state.done:
+            # real-time plans do not fail when the plant is spent; its missed cycle ends the re-planning
+            errors = task_errors(self.plant_problem, np.array(state.x), (k + 1) // self.n)
+            state.done = bool(errors[-1] > self.mpc.target_tolerance)
         return True
 
     def within_bounds(self, x: np.ndarray) -> bool:
@@ -448,6 +511,8 @@ class ClosedLoop:
         """
         rep = as_reporter(progress)
         state = state or self.initial_state()
+        if self.real_time:
+            self.window_ocps()
         estimator = self.new_estimator()
         if state.params:
             estimator.params = state.params[-1].copy()
@@ -463,8 +528,9 @@ class ClosedLoop:
                 self.replan(state, estimator)
                 replanned += 1
                 row = state.replans[-1]
+                said = "converged" if row[4] else "bounded" if state.plan is not None and state.plan[2] == k else row[3].decode()
                 rep.line(f"re-plan {row[0]:3d} at node {k} (cycle {k / self.n:.2f}): "
-                         f"{'converged' if row[4] else row[3].decode():9s} {row[5]:4d} it {row[6]:6.2f} s"
+                         f"{said:9s} {row[5]:4d} it {row[6]:6.2f} s"
                          f"  real-time factor {row[9]:.2f}")
                 if checkpoint is not None:
                     checkpoint(state)

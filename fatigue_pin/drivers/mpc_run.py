@@ -59,11 +59,20 @@ def fingerprint(loop: ClosedLoop) -> str:
     data = {
         "model": problem(loop.problem), "plant": problem(loop.plant_problem),
         "window": [s.window, s.end_tolerance, s.failure_iterations, s.min_iterations, s.warmup, s.guess_fatigue],
-        "mpc": json.loads(json.dumps(asdict(loop.mpc), default=list)) | {"replan_every": loop.replan_every},
+        "mpc": _mpc_settings(loop),
         "plant_settings": json.loads(json.dumps(asdict(loop.plant_settings), default=list)),
         "transcription": repr(loop.transcription), "x_init": loop.problem.initial_state().tolist(),
     }
     return json.dumps(data, sort_keys=True)
+
+
+def _mpc_settings(loop: ClosedLoop) -> dict[str, Any]:
+    """The loop's settings as the fingerprint holds them; a key added since (real-time
+    iterations) only where it is set, so that runs stored before keep their fingerprints."""
+    settings = json.loads(json.dumps(asdict(loop.mpc), default=list)) | {"replan_every": loop.replan_every}
+    if settings.get("iterations_per_replan") is None:
+        settings.pop("iterations_per_replan", None)
+    return settings
 
 
 def _cycle_costs(loop: ClosedLoop, x: np.ndarray, u: np.ndarray, cycles: int) -> np.ndarray:
@@ -92,7 +101,7 @@ def to_run(loop: ClosedLoop, state: LoopState, name: str, study: str = "", label
     attrs.update(
         n_cycles=cycles, repetitions=repetitions_achieved(errors, loop.mpc.target_tolerance, follows_flow(gaps)), replan_every=loop.replan_every, estimator=loop.mpc.estimator,
         probe_every=loop.mpc.probe_every, target_tolerance=loop.mpc.target_tolerance, window=loop.sliding.window,
-        capacity_margin=loop.mpc.capacity_margin, finished=loop.finished(state), done=state.done, converged=bool(table["converged"].any()) if table.size else False,
+        capacity_margin=loop.mpc.capacity_margin, iterations_per_replan=loop.mpc.iterations_per_replan or 0, finished=loop.finished(state), done=state.done, converged=bool(table["converged"].any()) if table.size else False,
         status=table["status"][-1].decode() if table.size else "not started",
         wall_time_s=float(table["wall_time_s"].sum() + table["estimator_time_s"].sum()) if table.size else 0.0,
         iterations=int(table["iterations"].sum()) if table.size else 0, build_time_s=build_time,

@@ -9,7 +9,8 @@
   joints with a joint target at that phase held at its value);
 * from another solution: stretched over another number of cycles (:func:`resample_guess`, the
   maximum-repetitions search), or shifted by the advance of a sliding window
-  (:func:`shifted_window_guess`).
+  (:func:`shifted_window_guess`), or shifted exactly, a closed loop's plan
+  (:func:`shifted_plan_guess`).
 
 Shapes: states (N+1, nx), controls (N, nu).
 """
@@ -44,10 +45,11 @@ def rollout_fatigue(ocp: Ocp, x_init: np.ndarray, q: np.ndarray, qdot: np.ndarra
     x = np.zeros((N + 1, L.nx))
     x[:, L.q], x[:, L.v] = q, qdot
     x[0, L.m] = x_init[L.m]
+    if N == 0:
+        return x
     p = ocp.actuators.param_vector() if fatigue is None else np.asarray(fatigue, dtype=float)
-    for k in range(N):
-        m = np.asarray(ocp.functions.F_fatigue(x[k, L.m], u[k], p)).reshape(-1)
-        x[k + 1, L.m] = np.clip(m, 0.0, 1.0)
+    rollout = ocp.functions.fatigue_rollout(N)
+    x[1:, L.m] = np.asarray(rollout(x[0, L.m], np.asarray(u, dtype=float).T, np.tile(p.reshape(-1, 1), (1, N)))).T
     return x
 
 
@@ -196,4 +198,28 @@ def shifted_window_guess(ocp: Ocp, x_init: np.ndarray, x_prev: np.ndarray, u_pre
     if copy_fatigue:
         return xs, u
     L = ocp.layout
+    return rollout_fatigue(ocp, x_init, xs[:, L.q], xs[:, L.v], u, fatigue), u
+
+
+def shifted_plan_guess(ocp: Ocp, x_init: np.ndarray, x_prev: np.ndarray, u_prev: np.ndarray, intervals: int,
+                       fatigue: np.ndarray | None = None) -> Guess:
+    """Guess of a window re-planned ``intervals`` intervals after the plan (x_prev (H+1, nx),
+    u_prev (H, nu)) of a window of the same length H: that plan shifted, node j taking the plan's
+    node j + ``intervals``. A window ends within its end box around its own start, whole cycles
+    later, so the plan continues past its end as it began: the last ``intervals`` intervals
+    take the plan's first ones (the same phases, whole cycles earlier). Node 0 is ``x_init``'s q and
+    qdot; the fatigue states are integrated from ``x_init``'s with the shifted controls
+    (``fatigue``: the parameters, default the actuators'). Unlike :func:`shifted_window_guess`,
+    which repeats one cycle, every node keeps the plan's own timing: the start of the closed
+    loop's real-time iterations (:class:`~fatigue_pin.drivers.mpc.MpcSettings`), which improve one
+    plan over the re-plans."""
+    H, r = u_prev.shape[0], int(intervals)
+    if not 0 < r < H or x_prev.shape[0] != H + 1:
+        raise ParameterError(f"shifted_plan_guess: a shift of {intervals!r} intervals of a plan of {H} intervals; "
+                             f"expected 0 < shift < {H}")
+    rows = np.r_[np.arange(r, H), np.arange(r)]
+    xs = x_prev[np.r_[np.arange(r, H + 1), np.arange(1, r + 1)]].copy()
+    L = ocp.layout
+    xs[0, L.q], xs[0, L.v] = x_init[L.q], x_init[L.v]
+    u = u_prev[rows].copy()
     return rollout_fatigue(ocp, x_init, xs[:, L.q], xs[:, L.v], u, fatigue), u

@@ -453,6 +453,20 @@ class IntervalFunctions:
                        for name, pair in self.blocks.items() if pair.jac.name() in functions}
         self.library = library
 
+    def fatigue_rollout(self, n: int) -> ca.Function:
+        """``fatigue_rollout(m0, U, P) -> M``: :attr:`F_fatigue` over ``n`` intervals in one call,
+        each step's states clipped to [0, 1]; m0 (n_states,), U (nu, n), P (n_params, n), M
+        (n_states, n) the states at nodes 1..n. Built once per ``n`` and per :attr:`F_fatigue`
+        (a compiled library swaps it); a Python loop of ``F_fatigue`` calls gives the same values."""
+        key = (int(n), id(self.F_fatigue))
+        cache = self.__dict__.setdefault("_fatigue_rollouts", {})
+        if key not in cache:
+            F = self.F_fatigue
+            m, u, p = ca.MX.sym("m", F.size1_in(0)), ca.MX.sym("u", F.size1_in(1)), ca.MX.sym("p", F.size1_in(2))
+            clipped = ca.Function("fatigue_step_clipped", [m, u, p], [ca.fmin(ca.fmax(F(m, u, p), 0.0), 1.0)])
+            cache[key] = clipped.mapaccum("fatigue_rollout", int(n), [0], [0])
+        return cache[key]
+
     def step(self, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Numeric state after one interval, shape (nx,)."""
         L = self.layout

@@ -20,6 +20,9 @@ class ParameterLayout:
         self._opti = opti
         self._blocks: dict[str, tuple[slice, tuple[int, int]]] = {}
         self._size = 0
+        #: the size at which the Opti problem's parameters were last found to be the layout's
+        #: (asking Opti for its parameter vector takes about 10 ms on a window)
+        self._checked_size = -1
 
     def add(self, name: str, rows: int, cols: int = 1) -> ca.MX:
         sym = self._opti.parameter(rows, cols)
@@ -37,8 +40,10 @@ class ParameterLayout:
 
     def vector(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
         """The parameter vector from a value per block (column-major, as CasADi stores it)."""
-        if self._size != self._opti.p.numel():
-            raise RuntimeError("the Opti problem has parameters that are not in the parameter layout")
+        if self._checked_size != self._size:
+            if self._size != self._opti.p.numel():
+                raise RuntimeError("the Opti problem has parameters that are not in the parameter layout")
+            self._checked_size = self._size
         out = np.zeros(self._size)
         for name, (sl, shape) in self._blocks.items():
             if name not in values:

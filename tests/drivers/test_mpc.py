@@ -228,6 +228,8 @@ def test_task_errors_count_both_ends_of_a_cycle():
     (lambda: MpcSettings(estimator="kalman"), "mpc.estimator"),
     (lambda: MpcSettings(probe_every=0), "mpc.probe_every"),
     (lambda: MpcSettings(target_tolerance=-1.0), "mpc.target_tolerance"),
+    (lambda: MpcSettings(iterations_per_replan=0), "mpc.iterations_per_replan"),
+    (lambda: MpcSettings(iterations_per_replan=2.5), "mpc.iterations_per_replan"),
     (lambda: _loop(small_curl("sliding"), None, MpcSettings(replan_every=31)), "mpc.replan_every"),
 ])
 def test_bad_mpc_settings_name_the_key(make, key):

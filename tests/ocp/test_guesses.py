@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fatigue_pin.ocp.guesses import resample_guess
 
@@ -40,3 +41,45 @@ def test_a_one_cycle_window_re_planned_mid_cycle_is_guessed_in_its_new_phase(bui
     # with its fatigue states integrated from the new start instead
     x2, u2 = shifted_window_guess(one, sol.x[3], sol.x, sol.u, 0, intervals=3)
     assert np.array_equal(u2, u) and np.allclose(x2[0], sol.x[3])
+
+
+def test_the_fatigue_rollout_is_the_loop_of_one_interval_steps_clipped(build):
+    """``IntervalFunctions.fatigue_rollout`` (one mapped call) gives the states of a Python loop of
+    ``F_fatigue`` steps clipped to [0, 1], bit for bit, including controls that overdrive a half."""
+    from fatigue_pin.ocp.guesses import rollout_fatigue
+
+    ocp = build(1)
+    L, N = ocp.layout, ocp.n_intervals
+    rng = np.random.default_rng(3)
+    u = rng.uniform(0.0, 1.5, (N, L.nu)) * ocp.actuators.param_vector().max()  # some beyond any limit
+    x0 = ocp.problem.initial_state()
+    q, v = np.tile(x0[L.q], (N + 1, 1)), np.tile(x0[L.v], (N + 1, 1))
+    x = rollout_fatigue(ocp, x0, q, v, u)
+    p = ocp.actuators.param_vector()
+    m = [x0[L.m]]
+    for k in range(N):
+        m.append(np.clip(np.asarray(ocp.functions.F_fatigue(m[-1], u[k], p)).reshape(-1), 0.0, 1.0))
+    assert np.array_equal(x[:, L.m], np.array(m)) and np.array_equal(x[:, L.q], q)
+    assert x[:, L.m].max() > 0.1  # the controls did tire the halves
+
+
+def test_a_plan_shifted_exactly_keeps_its_timing_and_continues_as_it_began(build):
+    """``shifted_plan_guess``: node j of a window re-planned 3 intervals after the plan is the
+    plan's node j + 3; the last 3 intervals take the plan's first ones (the window ends where it
+    starts, whole cycles later); node 0 has the new start's q and qdot; the fatigue states are
+    integrated from the new start's. A shift outside the plan is refused in one line."""
+    from fatigue_pin.core.errors import ParameterError
+    from fatigue_pin.ocp.guesses import rollout_fatigue, shifted_plan_guess
+
+    ocp = build(2)
+    sol = ocp.solve()
+    L, H = ocp.layout, ocp.n_intervals
+    x_init = sol.x[3].copy()
+    x_init[L.q] += 0.01
+    x, u = shifted_plan_guess(ocp, x_init, sol.x, sol.u, 3)
+    assert np.array_equal(u, np.vstack([sol.u[3:], sol.u[:3]]))
+    assert np.array_equal(x[1 : H - 2, L.q], sol.x[4:H + 1, L.q]) and np.array_equal(x[H - 2 :, L.v], sol.x[1:4, L.v])
+    assert np.array_equal(x[0, L.q], x_init[L.q])
+    np.testing.assert_array_equal(x, rollout_fatigue(ocp, x_init, x[:, L.q], x[:, L.v], u))
+    with pytest.raises(ParameterError, match="^shifted_plan_guess: a shift of 0 intervals"):
+        shifted_plan_guess(ocp, x_init, sol.x, sol.u, 0)
