@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/mpc_speed.py [--replans 20] [--repeats 2] [--configs before,now] [--cache DIR]
+    python benchmarks/mpc_speed.py --to-exhaustion [--repeats 2] [--configs now,rti-3,rti-4,rti-5]
 
 The paper's sliding study, authors-code, cost fatigue, S = 10
 (studies/curl_sliding_fatigue_authors-code.toml: 50 intervals of 0.02 s per cycle, windows of 3
@@ -18,6 +19,14 @@ a re-plan every 5 intervals (0.1 s). Configurations (changes of the study, as ``
   solution moved by the intervals between them (IPOPT's warm start);
 * ``mumps``, ``riccati``: IPOPT's linear solver (``now`` is the study's, ``auto``: ``riccati``
   on arm26).
+* ``rti-3``, ``rti-4``, ``rti-5``: real-time iterations (``mpc.iterations_per_replan`` = 3, 4,
+  5): every re-plan after the first makes at most that many IPOPT iterations from the plan in
+  force, and its last iterate is the plan.
+
+``--to-exhaustion``: each run goes on until the plant misses a cycle or a re-plan fails
+(``mpc.end = "receding"``, at most 25 cycles), and the table gives the plant's repetitions
+beside the real-time factors: a faster scheme must keep the repetitions of the converged
+re-plans (within one).
 
 Every run is a child process; the configurations alternate within each repeat; the compile
 cache is built first (not timed). Printed: per configuration the medians over the repeats of the
@@ -46,21 +55,26 @@ CONFIGS: dict[str, dict] = {
     "warm": {"horizon.warm_start": True},
     "mumps": {"solver.linear_solver": "mumps"},
     "riccati": {"solver.linear_solver": "riccati"},
+    **{f"rti-{k}": {"mpc.iterations_per_replan": k} for k in (2, 3, 4, 5, 6)},
 }
+#: ``--to-exhaustion``: the run ends when the plant is spent, not after ``--replans``
+EXHAUSTION = {"mpc.end": "receding", "horizon.max_cycles": 25}
 LOOP = {"mpc.replan_every": 5, "mpc.estimator": "open-loop", "horizon.max_cycles": 6}
 
 
 def child(config: str, replans: int, cache: str, out: str) -> None:
-    """One closed-loop run of ``replans`` re-plans; writes their records as JSON to ``out``."""
+    """One closed-loop run of ``replans`` re-plans (0: to exhaustion); writes their records and
+    the plant's repetitions as JSON to ``out``."""
     import numpy as np
 
     from fatigue_pin.io.mpc_study import MpcStudy, run_mpc
 
-    study = MpcStudy.from_file(STUDY, {**LOOP, **CONFIGS[config]})
-    run = run_mpc(study, None, cache_dir=cache, stop_after=replans)
+    study = MpcStudy.from_file(STUDY, {**LOOP, **(EXHAUSTION if replans == 0 else {}), **CONFIGS[config]})
+    run = run_mpc(study, None, cache_dir=cache, stop_after=replans or None)
     rec = run.extras["replans"]
-    Path(out).write_text(json.dumps({name: np.asarray(rec[name]).tolist() for name in ("real_time_factor", "iterations",
-                                                                                        "converged", "wall_time_s")}))
+    record = {name: np.asarray(rec[name]).tolist() for name in ("real_time_factor", "iterations", "converged", "wall_time_s")}
+    record |= {"repetitions": int(run.attrs["repetitions"]), "task_error": np.asarray(run.extras["task_error"]).tolist()}
+    Path(out).write_text(json.dumps(record))
 
 
 def spawn(config: str, replans: int, cache: str, out: str) -> dict:
@@ -82,7 +96,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--configs", default="before,now")
     parser.add_argument("--cache", default=None, help="compile cache (default: a temporary folder)")
+    parser.add_argument("--to-exhaustion", action="store_true", help="run every loop until the plant is spent")
     args = parser.parse_args()
+    replans = 0 if args.to_exhaustion else args.replans
     configs = args.configs.split(",")
     with tempfile.TemporaryDirectory() as tmpname:
         cache = args.cache or str(Path(tmpname) / "cache")
@@ -92,21 +108,23 @@ def main() -> None:
         runs: dict[str, list[dict]] = {c: [] for c in configs}
         for rep in range(args.repeats):
             for config in configs:
-                r = spawn(config, args.replans, cache, str(Path(tmpname) / f"{config}_{rep}.json"))
+                r = spawn(config, replans, cache, str(Path(tmpname) / f"{config}_{rep}.json"))
                 if r:
                     runs[config].append(r)
-                    print(f"  repeat {rep} {config}: RTF median {statistics.median(r['real_time_factor']):.2f}, max "
-                          f"{max(r['real_time_factor']):.2f}, iterations {r['iterations']}, load {os.getloadavg()[0]:.2f}", flush=True)
+                    print(f"  repeat {rep} {config}: RTF median {statistics.median(r['real_time_factor'][1:]):.2f}, max "
+                          f"{max(r['real_time_factor'][1:]):.2f}, repetitions {r['repetitions']}, task errors "
+                          f"{[round(e, 4) for e in r['task_error']]}, iterations {r['iterations']}, load {os.getloadavg()[0]:.2f}", flush=True)
         print()
-        print("| configuration | re-plans | converged | real-time factor median | real-time factor max | iterations median |")
-        print("|---|---|---|---|---|---|")
+        print("Real-time factors and iterations of the re-plans after the first (the first plan is made before the motion).")
+        print("| configuration | re-plans | converged | real-time factor median | real-time factor max | iterations median | repetitions |")
+        print("|---|---|---|---|---|---|---|")
         for config, rs in runs.items():
             if not rs:
                 continue
             med = lambda f: statistics.median(f(r) for r in rs)  # noqa: E731
             print(f"| {config} | {len(rs[0]['iterations'])} | {sum(map(bool, rs[0]['converged']))} | "
-                  f"{med(lambda r: statistics.median(r['real_time_factor'])):.2f} | {med(lambda r: max(r['real_time_factor'])):.2f} | "
-                  f"{med(lambda r: statistics.median(r['iterations'])):.0f} |", flush=True)
+                  f"{med(lambda r: statistics.median(r['real_time_factor'][1:])):.2f} | {med(lambda r: max(r['real_time_factor'][1:])):.2f} | "
+                  f"{med(lambda r: statistics.median(r['iterations'][1:])):.0f} | {', '.join(str(r['repetitions']) for r in rs)} |", flush=True)
 
 
 if __name__ == "__main__":
