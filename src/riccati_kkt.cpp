@@ -932,16 +932,15 @@ RICCATI_EXPORT int riccati_pair_stages(int n, int nz, const int* irn, const int*
   return p.analyse(n, nz, irn, jcn) ? p.nstages : 0;
 }
 
-// Factorisations made so far by each method, over the solvers alive (tests, benchmarks).
+// Factorisations made by each method by the newest solver (the last analysis: tests, benchmarks).
 RICCATI_EXPORT void riccati_pair_counts(long* pair, long* block) {
   std::lock_guard<std::mutex> lock(registry_mutex);
   *pair = 0;
   *block = 0;
-  for (auto& s : registry)
-    if (s) {
-      *pair += s->pair_factors;
-      *block += s->block_factors;
-    }
+  if (!registry.empty() && registry.back()) {
+    *pair = registry.back()->pair_factors;
+    *block = registry.back()->block_factors;
+  }
 }
 
 }  // extern "C"
