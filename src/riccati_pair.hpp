@@ -36,6 +36,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 namespace pairstep {
@@ -49,6 +50,11 @@ using IVec = std::vector<int>;
 // block becomes the Schur complement. Sparse pivot columns (slacks, their rows) update only
 // their nonzero rows; from the first dense pivot column on, updates stay within the candidates
 // and the rest rows are done at the end by one triangular solve and one product.
+#ifndef RICCATI_PAIR_CANCEL
+#define RICCATI_PAIR_CANCEL 1e-10
+#endif
+constexpr double CANCEL = RICCATI_PAIR_CANCEL;
+
 struct PartialBK {
   int n = 0, m = 0, neg = 0;
   bool singular = false;
@@ -71,6 +77,12 @@ struct PartialBK {
   }
   static double low(const Mat& K, int i, int j) { return i >= j ? K(i, j) : K(j, i); }
 
+  // A pivot step is refused (singular = true) when its candidate column is no larger than CANCEL
+  // times the magnitude its diagonal had before cancellation (mag: |the assembled diagonal| + the
+  // |updates| it received): restricted to the local block, a pivot that is zero in exact
+  // arithmetic comes out as round-off, not as zero. A small pivot formed without cancellation
+  // (a row after its slack: -c^2 / Sigma_s) passes.
+  std::vector<double> mag;
   void factor(Mat& K, int m_) {
     n = static_cast<int>(K.rows());
     m = m_;
@@ -86,6 +98,8 @@ struct PartialBK {
     const double alpha = (1 + std::sqrt(17.0)) / 8;
     int nu = n;
     k0 = m;
+    mag.resize(m);
+    for (int i = 0; i < m; ++i) mag[i] = std::abs(K(i, i));
     int k = 0;
     while (k < m) {
       const double akk = std::abs(K(k, k));
@@ -97,6 +111,11 @@ struct PartialBK {
           colmax = v;
           imax = i;
         }
+      }
+      const double big = std::max(akk, colmax);
+      if (!(big > std::numeric_limits<double>::min() && big > CANCEL * mag[k])) {
+        singular = true;
+        return;
       }
       int kind = 1, p = k;
       if (akk < alpha * colmax) {
@@ -113,6 +132,7 @@ struct PartialBK {
       if (kind == 1) {
         swp[k] = p;
         swap_sym(K, k, p);
+        std::swap(mag[k], mag[p]);
         const double d = K(k, k);
         if (d == 0 || !std::isfinite(d)) {
           singular = true;
@@ -136,7 +156,10 @@ struct PartialBK {
         if (static_cast<int>(nz.size()) * 2 > r) {
           for (int j = k + 1; j < nu; ++j) {
             const double lj = K(j, k) * di;
-            if (lj != 0) K.col(j).segment(j, nu - j).noalias() -= lj * K.col(k).segment(j, nu - j);
+            if (lj != 0) {
+              if (j < m) mag[j] += std::abs(lj * K(j, k));
+              K.col(j).segment(j, nu - j).noalias() -= lj * K.col(k).segment(j, nu - j);
+            }
           }
           K.col(k).segment(k + 1, r) *= di;
         } else {
@@ -144,6 +167,7 @@ struct PartialBK {
           for (size_t t = 0; t < nz.size(); ++t) {
             const int a = nz[t];
             const double la = K(a, k) * di;
+            if (a < m) mag[a] += std::abs(la * K(a, k));
             for (size_t u = t; u < nz.size(); ++u) K(nz[u], a) -= la * K(nz[u], k);
           }
           for (int a : nz) K(a, k) *= di;
@@ -153,6 +177,7 @@ struct PartialBK {
         swp[k] = p;
         piv2[k] = 1;
         swap_sym(K, k + 1, p);
+        std::swap(mag[k + 1], mag[p]);
         const double a = K(k, k), b = K(k + 1, k), c = K(k + 1, k + 1), det = a * c - b * b;
         if (det == 0 || !std::isfinite(det)) {
           singular = true;
@@ -183,6 +208,7 @@ struct PartialBK {
           Lw = W2 * Di;
           for (int j = 0; j < r; ++j) {
             const double a0 = Lw(j, 0), a1 = Lw(j, 1);
+            if (k + 2 + j < m) mag[k + 2 + j] += std::abs(a0 * W2(j, 0)) + std::abs(a1 * W2(j, 1));
             K.col(k + 2 + j).segment(k + 2 + j, r - j) -= a0 * W2.col(0).tail(r - j) + a1 * W2.col(1).tail(r - j);
           }
           K.block(k + 2, k, r, 2) = Lw;
@@ -196,6 +222,7 @@ struct PartialBK {
           }
           for (size_t t = 0; t < nz.size(); ++t) {
             const int rr = nz[t];
+            if (rr < m) mag[rr] += std::abs(l0v[t] * K(rr, k)) + std::abs(l1v[t] * K(rr, k + 1));
             for (size_t u = t; u < nz.size(); ++u) {
               const int s = nz[u];
               K(s, rr) -= l0v[t] * K(s, k) + l1v[t] * K(s, k + 1);
@@ -257,13 +284,13 @@ struct PartialBK {
           if (cptr[k] >= 0) {
             for (int t = cptr[k]; t < cend[k]; ++t) y[cidx[t]] -= L(cidx[t], k) * yk;
           } else {
-            for (int i = k + 1; i < n; ++i) y[i] -= L(i, k) * yk;
+            y.segment(k + 1, n - k - 1).noalias() -= yk * Kp->col(k).segment(k + 1, n - k - 1);
           }
         }
         ++k;
       } else {
         const double y0 = y[k], y1 = y[k + 1];
-        for (int i = k + 2; i < n; ++i) y[i] -= L(i, k) * y0 + L(i, k + 1) * y1;
+        y.segment(k + 2, n - k - 2).noalias() -= y0 * Kp->col(k).segment(k + 2, n - k - 2) + y1 * Kp->col(k + 1).segment(k + 2, n - k - 2);
         k += 2;
       }
     }
@@ -288,19 +315,14 @@ struct PartialBK {
         if (cptr[k] >= 0) {
           for (int t = cptr[k]; t < cend[k]; ++t) s -= L(cidx[t], k) * y[cidx[t]];
         } else {
-          for (int i = k + 1; i < n; ++i) s -= L(i, k) * y[i];
+          s -= Kp->col(k).segment(k + 1, n - k - 1).dot(y.segment(k + 1, n - k - 1));
         }
         y[k] = s;
         k -= 1;
       } else {
         const int j = k - 1;
-        double s0 = y[j], s1 = y[k];
-        for (int i = k + 1; i < n; ++i) {
-          s0 -= L(i, j) * y[i];
-          s1 -= L(i, k) * y[i];
-        }
-        y[j] = s0;
-        y[k] = s1;
+        y[j] -= Kp->col(j).segment(k + 1, n - k - 1).dot(y.segment(k + 1, n - k - 1));
+        y[k] -= Kp->col(k).segment(k + 1, n - k - 1).dot(y.segment(k + 1, n - k - 1));
         k -= 2;
       }
     }
@@ -315,12 +337,13 @@ struct PartialBK {
   }
 };
 
+
 struct Stage {
   IVec loc, xs, J, lam;  // lam: this stage's dynamics rows, paired with the next stage's xs (same order)
   IVec front;            // loc, xs (global ids); J follows in the extended front
   std::vector<std::array<int, 3>> ent;   // (front row, front column, triplet), row >= column
   std::vector<std::array<int, 3>> cent;  // C: (lam index, front position, triplet)
-  IVec eslot, dslot;     // E's triplet per lam row; its diagonal's triplet (-1: none)
+  std::vector<IVec> eslot, dslot;  // per lam row: E's triplets, its diagonal's (duplicates are summed)
   IVec Jpos;             // the next stage's J: positions in this front
   PartialBK bk;
   Mat K, S;              // the front (factor in place) and its Schur block on [xs; J] (symmetric)
@@ -525,13 +548,13 @@ struct PairSolver {
       return st[k].nf + static_cast<int>(std::lower_bound(J.begin(), J.end(), i) - J.begin());
     };
     for (auto& s : st) {
-      s.eslot.assign(s.lam.size(), -1);
-      s.dslot.assign(s.lam.size(), -1);
+      s.eslot.assign(s.lam.size(), IVec());
+      s.dslot.assign(s.lam.size(), IVec());
     }
     for (int t = 0; t < nz; ++t) {
       int x1 = ti[t], x2 = tj[t];
       if (x1 == x2) {
-        if (typ[x1] == 2) st[stage[x1]].dslot[pos[x1]] = t;
+        if (typ[x1] == 2) st[stage[x1]].dslot[pos[x1]].push_back(t);
         else st[owner[x1]].ent.push_back({pos[x1], pos[x1], t});
         continue;
       }
@@ -539,7 +562,7 @@ struct PairSolver {
         if (typ[x2] == 2) std::swap(x1, x2);
         const int k = stage[x1];
         if (stage[x2] == k + 1) {
-          st[k].eslot[pos[x1]] = t;
+          st[k].eslot[pos[x1]].push_back(t);
           continue;
         }
         if (owner[x2] != k) return fail(__LINE__);
@@ -551,8 +574,8 @@ struct PairSolver {
       st[k].ent.push_back({std::max(pa, pb), std::min(pa, pb), t});
     }
     for (auto& s : st)
-      for (int e : s.eslot)
-        if (e < 0) return fail(__LINE__);
+      for (const IVec& e : s.eslot)
+        if (e.empty()) return fail(__LINE__);
     for (int k = 0; k < S; ++k)
       if (st[k].lam.size() != st[k + 1].xs.size()) return fail(__LINE__);
     r.resize(n);
@@ -563,12 +586,14 @@ struct PairSolver {
   // Returns false when a guard trips (nothing of this factorisation may then be used).
   bool factor(const double* A) {
     sc.assign(n, 0.0);
+    double total = 0.0;  // non-finite if any value is
     for (int t = 0; t < nz; ++t) {
       const double w = std::abs(A[t]);
-      if (!std::isfinite(w)) return false;
+      total += w;
       sc[ti[t]] = std::max(sc[ti[t]], w);
       sc[tj[t]] = std::max(sc[tj[t]], w);
     }
+    if (!std::isfinite(total)) return false;
     for (double& v : sc) v = v > 0.0 ? 1.0 / std::sqrt(v) : 1.0;
     av.resize(nz);
     for (int t = 0; t < nz; ++t) av[t] = A[t] * sc[ti[t]] * sc[tj[t]];
@@ -584,8 +609,11 @@ struct PairSolver {
         const int nl = static_cast<int>(s.lam.size());
         s.e.resize(nl);
         for (int i = 0; i < nl; ++i) {
-          if (s.dslot[i] >= 0 && av[s.dslot[i]] != 0) return false;  // delta_c on a dynamics row
-          s.e[i] = av[s.eslot[i]];
+          double d = 0.0, e = 0.0;
+          for (int t : s.dslot[i]) d += av[t];
+          if (d != 0.0) return false;  // delta_c on a dynamics row
+          for (int t : s.eslot[i]) e += av[t];
+          s.e[i] = e;
           if (s.e[i] == 0 || !std::isfinite(s.e[i])) return false;
         }
         const Mat& P = st[k + 1].S;  // over the next stage's [xs; J]

@@ -3,7 +3,8 @@
 // max|Ax - b| / max|b| of one solve and of one solve + one refinement step (as IPOPT's
 // min_refinement_steps = 1), and the CPU time of the factorisation and of one solve (medians over
 // REPS repeats, the two methods alternating). Both methods are the same library loaded once; the
-// method is chosen at the analysis by FATIGUE_PIN_RICCATI_PAIR (0: block LDL^T only).
+// method is chosen at the analysis by FATIGUE_PIN_RICCATI_PAIR (0: block LDL^T only). ONLY_PAIR=1:
+// the pair step alone (profiling).
 //
 //   g++ -O2 experiments/riccati_proto/pairlib_check.cpp -o /tmp/ric2/check -ldl
 //   /tmp/ric2/check fatigue_pin/libfatigue_pin_riccati.so /tmp/ric/ur5 [REPS]
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
   auto counts = reinterpret_cast<Counts>(dlsym(lib, "riccati_pair_counts"));
   const std::string base = argv[2];
   const int reps = argc > 3 ? std::atoi(argv[3]) : 7;
+  const int only_pair = std::getenv("ONLY_PAIR") ? 1 : 0;  // profiling: the pair step alone
   FILE* f = std::fopen((base + ".pat").c_str(), "rb");
   int N, NZ;
   if (std::fread(&N, 4, 1, f) != 1 || std::fread(&NZ, 4, 1, f) != 1) return 1;
@@ -96,7 +98,7 @@ int main(int argc, char** argv) {
     double res1[2] = {0, 0}, res2[2] = {0, 0};
     std::vector<double> tfv[2], tsv[2];
     for (int rep = 0; rep < reps; ++rep)
-      for (int w = 0; w < 2; ++w) {
+      for (int w = only_pair; w < 2; ++w) {
         Method& m = M[w];
         std::vector<double> a = A;
         int la = NZ, liw = 16, nsteps = 1, maxfrt = 1, iw1[64];
