@@ -13,7 +13,12 @@
 // The solver's state is kept here; its handle travels in IKEEP (ma27ad -> ma27bd) and IW
 // (ma27bd -> ma27cd), both owned by IPOPT and kept between the calls.
 //
-// Method: the pattern gives an elimination order by stages. Primal variables (the indices before
+// Two methods. The pair step (src/riccati_pair.hpp: its header says how and when) is tried
+// first at every factorisation where the analysis found its structure; any guard that trips at
+// factor time makes that factorisation use the block LDL^T below. FATIGUE_PIN_RICCATI_PAIR=0
+// (read at each analysis) turns the pair step off.
+//
+// Block LDL^T: the pattern gives an elimination order by stages. Primal variables (the indices before
 // the trailing independent set of constraint rows) keep their NLP order, which the project's
 // transcription interleaves by stage; each constraint row comes right after the last primal
 // variable it touches, and a slack (a primal touching one row only) right after its row. Blocks

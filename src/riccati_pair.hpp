@@ -5,10 +5,14 @@
 // Structure (found from the pattern alone, PairSolver::analyse):
 //   - constraint rows: the trailing indices with no coupling among themselves; slacks: primal
 //     indices coupled with one row and nothing else (their rows: inequality rows);
-//   - dynamics rows: an equality row touching >= 2 non-slack primals is a candidate for its
-//     highest-index one (the transcription interleaves the stages, so that is the next state it
-//     defines); when several rows name the same variable, the row reaching the lowest index (the
-//     one that reaches back into the previous stage) is taken; its partner becomes a state;
+//   - dynamics rows: the transcription declares the states of all nodes before the controls
+//     (casadi Opti: X (nx, N + 1) column-major, then U) and IPOPT keeps the order, so a dynamics
+//     row's partner (the next state it defines) is the highest variable it touches below the
+//     first control B. B is the lowest variable that is the highest of two or more equality
+//     rows (a control enters several rows of its node; with interleaved stages no variable is,
+//     B = all, and the partner is the row's highest variable). When several rows name one
+//     variable, the row reaching the lowest index (back into the previous stage) gets it;
+//     (identical to experiments/riccati_proto/plan.py's value-based pairing on both dumps);
 //   - stages: a state's stage is 1 + the largest stage of the states its row touches (longest
 //     path); a dynamics row belongs to its partner's stage - 1; every other variable takes the
 //     earliest stage of the dynamics rows touching it, every other row the latest stage of its
@@ -27,8 +31,10 @@
 //     Ct = E^{-1} C (C: the rows' coefficients on stage k's front), P = S_xx, B = S_xJ.
 //   Inertia (Sylvester): the local blocks' negative pivots + nx per pair.
 // Guards at factor time (false: the caller factorises with the block LDL^T): a non-finite value,
-// E zero or non-finite, a nonzero diagonal on a dynamics row (delta_c), a zero pivot in a local
-// block, a non-finite Schur block.
+// E zero or non-finite, a nonzero diagonal on a dynamics row (delta_c), a local pivot column
+// that is zero or cancelled (below CANCEL = 1e-10 times its diagonal's magnitude before the
+// updates: a local block singular in exact arithmetic, seen in tests/ocp/test_task_ends.py with
+// round-off pivots of 1e-17), a non-finite Schur block. Not handled (falls back): delta_c > 0.
 #pragma once
 #include <Eigen/Dense>
 
