@@ -352,7 +352,9 @@ struct Stage {
   std::vector<IVec> eslot, dslot;  // per lam row: E's triplets, its diagonal's (duplicates are summed)
   IVec Jpos;             // the next stage's J: positions in this front
   PartialBK bk;
-  Mat K, S;              // the front (factor in place) and its Schur block on [xs; J] (symmetric)
+  Mat K;                 // the front, factorised in place; its trailing block (from m) is the Schur
+                         // block S on [xs; J], made symmetric in place (Sb)
+  Eigen::Block<Mat> Sb() { return K.bottomRightCorner(K.rows() - m, K.rows() - m); }
   Vec e, yl;
   int m = 0, nf = 0;
 };
@@ -622,7 +624,7 @@ struct PairSolver {
           s.e[i] = e;
           if (s.e[i] == 0 || !std::isfinite(s.e[i])) return false;
         }
-        const Mat& P = st[k + 1].S;  // over the next stage's [xs; J]
+        const auto P = st[k + 1].Sb();  // over the next stage's [xs; J]
         const int nJn = static_cast<int>(st[k + 1].J.size());
         T.setZero(nl, nn);
         G.setZero(nJn, nn);
@@ -654,9 +656,9 @@ struct PairSolver {
       if (s.bk.singular) return false;
       negative += s.bk.neg;
       if (s.m < nn) {
-        s.S = s.K.bottomRightCorner(nn - s.m, nn - s.m);
-        s.S.triangularView<Eigen::StrictlyUpper>() = s.S.transpose();
-        if (!s.S.allFinite()) return false;
+        auto Sk = s.Sb();
+        Sk.triangularView<Eigen::StrictlyUpper>() = Sk.transpose();
+        if (!Sk.allFinite()) return false;
       }
     }
     return true;
@@ -682,10 +684,10 @@ struct PairSolver {
           gv[i] = r[q.lam[i]];
         }
         a = gv.cwiseQuotient(q.e);
-        l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(q.e);
+        l = (fv - s.Sb().topLeftCorner(nx, nx) * a).cwiseQuotient(q.e);
         for (const auto& c : q.cent) r[q.front[c[1]]] -= av[c[2]] * l[c[0]];
         if (nJ) {
-          u = s.S.block(0, nx, nx, nJ).transpose() * a;
+          u = s.Sb().block(0, nx, nx, nJ).transpose() * a;
           for (int j = 0; j < nJ; ++j) r[s.J[j]] -= u[j];
         }
       }
@@ -706,10 +708,10 @@ struct PairSolver {
         if (nJ) {
           zJ.resize(nJ);
           for (int j = 0; j < nJ; ++j) zJ[j] = x[s.J[j]];
-          fv -= s.S.block(0, nx, nx, nJ) * zJ;
+          fv -= s.Sb().block(0, nx, nx, nJ) * zJ;
         }
         a = gv.cwiseQuotient(q.e);
-        l = (fv - s.S.topLeftCorner(nx, nx) * a).cwiseQuotient(q.e);
+        l = (fv - s.Sb().topLeftCorner(nx, nx) * a).cwiseQuotient(q.e);
         for (int i = 0; i < nx; ++i) {
           x[s.xs[i]] = a[i];
           x[q.lam[i]] = l[i];
