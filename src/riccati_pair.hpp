@@ -431,13 +431,12 @@ struct PairSolver {
       }
     // a row's partner: its highest variable below B; several rows naming one variable: the row
     // reaching the lowest index (the dynamics row reaches back into the previous node)
-    IVec defrow(p, -1), cand(n, -1);
+    IVec defrow(p, -1);
     for (int rr = p; rr < n; ++rr) {
       if (is_ineq[rr] || rv[rr].size() < 2) continue;
       const auto it = std::lower_bound(rv[rr].begin(), rv[rr].end(), B);
       if (it == rv[rr].begin()) continue;
       const int v = *(it - 1);
-      cand[rr] = v;
       const int o = defrow[v];
       if (o < 0 || rv[rr].front() < rv[o].front()) defrow[v] = rr;
     }
@@ -462,14 +461,10 @@ struct PairSolver {
     if (S < 2) return fail(__LINE__);
     for (int rr = p; rr < n; ++rr)
       if (typ[rr] == 2) stage[rr] = stage[pv[rr]] - 1;
-    auto settle_var = [&](int v) {
+    auto settle_var = [&](int v) {  // the earliest stage of the dynamics rows touching v (-1: none)
       int s = -1;
       for (int rr : adj[v])
-        if (rr >= p && stage[rr] >= 0 && (typ[rr] == 2 || s < 0 || stage[rr] < s)) {
-          if (typ[rr] == 2) {
-            s = s < 0 ? stage[rr] : std::min(s, stage[rr]);
-          }
-        }
+        if (rr >= p && typ[rr] == 2) s = s < 0 ? stage[rr] : std::min(s, stage[rr]);
       return s;
     };
     for (int v = 0; v < p; ++v)
@@ -486,7 +481,7 @@ struct PairSolver {
         if (stage[v] >= 0 || slack_row[v] >= 0) continue;
         int s = -1;
         for (int w : adj[v])
-          if (stage[w] >= 0 && (w >= p || w < p)) s = s < 0 ? stage[w] : std::min(s, stage[w]);
+          if (stage[w] >= 0) s = s < 0 ? stage[w] : std::min(s, stage[w]);
         if (s >= 0) stage[v] = s;
       }
     }
