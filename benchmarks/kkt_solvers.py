@@ -42,6 +42,30 @@ CASES = {
     "muscles": ROOT / "studies" / "curl_muscles_sliding.toml",
 }
 SOLVERS = ("riccati", "mumps")
+# "riccati-block": the stage-wise library with its pair step off (FATIGUE_PIN_RICCATI_PAIR=0 while it
+# solves: the library reads it at each analysis), i.e. the block LDL^T alone, for the A/B.
+PAIR_ENV = "FATIGUE_PIN_RICCATI_PAIR"
+
+
+def linear_solver_of(name: str) -> str:
+    return "riccati" if name.startswith("riccati") else name
+
+
+def pair_counts() -> tuple[int, int] | None:
+    """(pair-step, block LDL^T) factorisations of the stage-wise library's last analysed solver."""
+    import ctypes
+
+    from fatigue_pin.ocp.solver import riccati_library
+
+    path = riccati_library()
+    if path is None:
+        return None
+    lib = ctypes.CDLL(str(path))
+    if not hasattr(lib, "riccati_pair_counts"):
+        return None
+    p, b = ctypes.c_long(0), ctypes.c_long(0)
+    lib.riccati_pair_counts(ctypes.byref(p), ctypes.byref(b))
+    return p.value, b.value
 TIMING = {"factor": "LinearSystemFactorization", "backsolve": "LinearSystemBackSolve",
           "symbolic": "LinearSystemSymbolicFactorization"}
 
@@ -73,14 +97,22 @@ def first_window(path: Path, linear_solver: str):
     return runner.ocp, calls[0]
 
 
-def timed(ocp, call) -> dict:
+def timed(ocp, call, solver: str = "") -> dict:
     from fatigue_pin.core.streams import captured
 
     a, k = call
-    with captured(1) as said:
-        t0 = time.perf_counter()
-        ocp.solve(*a, **k)
-        wall = time.perf_counter() - t0
+    old = os.environ.pop(PAIR_ENV, None)
+    if solver == "riccati-block":
+        os.environ[PAIR_ENV] = "0"
+    try:
+        with captured(1) as said:
+            t0 = time.perf_counter()
+            ocp.solve(*a, **k)
+            wall = time.perf_counter() - t0
+    finally:
+        os.environ.pop(PAIR_ENV, None)
+        if old is not None:
+            os.environ[PAIR_ENV] = old
     stats = ocp.nlp.stats() if hasattr(ocp, "nlp") else None
     text = "\n".join(said)
     out = {"wall": wall}
@@ -91,6 +123,7 @@ def timed(ocp, call) -> dict:
     out["iterations"] = int(m.group(1)) if m else -1
     out["factorizations"] = len(re.findall(r"^\s*\d+r?\s", text, flags=re.M))  # iteration lines (lower bound)
     out["said"] = text
+    out["counts"] = pair_counts() if solver.startswith("riccati") else None
     st = ocp.nlp.stats()
     evals = sum(v for k, v in st.items() if k.startswith("t_wall_nlp_"))
     m = re.search(r"OverallAlgorithm\.*:\s*[0-9.eE+-]+\s*\(sys:\s*[0-9.eE+-]+\s*wall:\s*([0-9.eE+-]+)\)", text)
@@ -114,20 +147,22 @@ def main() -> None:
     ap.add_argument("--cases", default="arm26,ur5")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--iterations", type=int, default=10)
+    ap.add_argument("--solvers", default=",".join(SOLVERS), help="riccati, riccati-block (pair step off), mumps")
     args = ap.parse_args()
-    print(f"{'case':6} {'solver':8} {'iters':>5} {'objective':>22} {'KKT ms/iter':>11} {'factor ms':>9} {'solves ms':>9} "
+    solvers = args.solvers.split(",")
+    print(f"{'case':6} {'solver':13} {'iters':>5} {'objective':>22} {'KKT ms/iter':>11} {'factor ms':>9} {'solves ms':>9} "
           f"{'IPOPT ms/iter':>13} {'window s':>8}  blocks")
     for case in args.cases.split(","):
-        built = {s: first_window(CASES[case], s) for s in SOLVERS}
-        runs: dict[str, list[dict]] = {s: [] for s in SOLVERS}
+        built = {s: first_window(CASES[case], linear_solver_of(s)) for s in solvers}
+        runs: dict[str, list[dict]] = {s: [] for s in solvers}
         for _ in range(args.repeats):
-            for s in SOLVERS:
+            for s in solvers:
                 ocp, call = built[s]
-                r = timed(ocp, call)
+                r = timed(ocp, call, s)
                 r["record"] = ocp.nlp.stats()["iterations"] if hasattr(ocp, "nlp") else None
                 runs[s].append(r)
-        last = {s: runs[s][-1] for s in SOLVERS}
-        for s in SOLVERS:
+        last = {s: runs[s][-1] for s in solvers}
+        for s in solvers:
             it = last[s]["iterations"]
             per = [(r["factor"] + r["backsolve"]) / max(1, r["iterations"] + 1) * 1e3 for r in runs[s]]
             fac = [r["factor"] / max(1, r["iterations"] + 1) * 1e3 for r in runs[s]]
@@ -135,15 +170,19 @@ def main() -> None:
             wall = [r["wall"] for r in runs[s]]
             inner = [r["ipopt"] / max(1, r["iterations"]) * 1e3 for r in runs[s]]
             obj = last[s]["record"]["obj"][-1] if last[s]["record"] else float("nan")
-            print(f"{case:6} {s:8} {it:5d} {obj:22.15e} {statistics.median(per):11.3f} {statistics.median(fac):9.3f} "
-                  f"{statistics.median(sol):9.3f} {statistics.median(inner):13.2f} {statistics.median(wall):8.3f}  {blocks(built[s][0])}")
-        ra, rb = last["riccati"]["record"], last["mumps"]["record"]
-        if ra and rb:
+            print(f"{case:6} {s:13} {it:5d} {obj:22.15e} {statistics.median(per):11.3f} {statistics.median(fac):9.3f} "
+                  f"{statistics.median(sol):9.3f} {statistics.median(inner):13.2f} {statistics.median(wall):8.3f}  {blocks(built[s][0])}"
+                  + (f"; pair/block factorisations {last[s]['counts']}" if last[s].get("counts") else ""))
+        pairs = [(x, y) for i, x in enumerate(solvers) for y in solvers[i + 1:]]
+        for sa, sb in pairs:
+            ra, rb = last[sa]["record"], last[sb]["record"]
+            if not (ra and rb):
+                continue
             n = min(args.iterations + 1, len(ra["obj"]), len(rb["obj"]))
             rel = lambda a, b: float(np.max(np.abs(np.subtract(a, b)) / np.maximum(np.abs(b), 1e-300)))  # noqa: E731
-            print(f"{case:6} iterates 0..{n - 1}: objective rel. diff {rel(ra['obj'][:n], rb['obj'][:n]):.2e}, "
-                  f"inf_pr rel. diff {rel(ra['inf_pr'][:n], rb['inf_pr'][:n]):.2e}; final objective rel. diff "
-                  f"{abs(ra['obj'][-1] - rb['obj'][-1]) / abs(rb['obj'][-1]):.2e}")
+            print(f"{case:6} {sa} vs {sb}, iterates 0..{n - 1}: objective rel. diff {rel(ra['obj'][:n], rb['obj'][:n]):.2e}, "
+                  f"inf_pr rel. diff {rel(ra['inf_pr'][:n], rb['inf_pr'][:n]):.2e}; iterations {last[sa]['iterations']} / "
+                  f"{last[sb]['iterations']}; final objective rel. diff {abs(ra['obj'][-1] - rb['obj'][-1]) / abs(rb['obj'][-1]):.2e}")
         sys.stdout.flush()
 
 

@@ -13,7 +13,12 @@
 // The solver's state is kept here; its handle travels in IKEEP (ma27ad -> ma27bd) and IW
 // (ma27bd -> ma27cd), both owned by IPOPT and kept between the calls.
 //
-// Method: the pattern gives an elimination order by stages. Primal variables (the indices before
+// Two methods. The pair step (src/riccati_pair.hpp: its header says how and when) is tried
+// first at every factorisation where the analysis found its structure; any guard that trips at
+// factor time makes that factorisation use the block LDL^T below. FATIGUE_PIN_RICCATI_PAIR=0
+// (read at each analysis) turns the pair step off.
+//
+// Block LDL^T: the pattern gives an elimination order by stages. Primal variables (the indices before
 // the trailing independent set of constraint rows) keep their NLP order, which the project's
 // transcription interleaves by stage; each constraint row comes right after the last primal
 // variable it touches, and a slack (a primal touching one row only) right after its row. Blocks
@@ -42,6 +47,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -49,6 +55,8 @@
 #include <new>
 #include <utility>
 #include <vector>
+
+#include "riccati_pair.hpp"
 
 namespace {
 
@@ -498,6 +506,9 @@ struct Solver {
   bool singular = false;
   int max_block = 0;
   const void* ikeep = nullptr;
+  std::unique_ptr<pairstep::PairSolver> pair;  // the pair-step recursion, when the structure fits
+  bool pair_used = false;                       // the last factorisation is the pair step's
+  long pair_factors = 0, block_factors = 0;     // counts (riccati_pair_stats)
 
   // A fill-reducing order inside block b (minimum degree): the block's front holds its own
   // couplings, the previous block's Schur complement (dense on the block's rows that couple with
@@ -755,6 +766,14 @@ struct Solver {
   }
 
   void factor(const double* a) {
+    pair_used = pair && pair->factor(a);
+    if (pair_used) {
+      ++pair_factors;
+      negative = pair->negative;
+      singular = false;
+      return;
+    }
+    ++block_factors;
     equilibrate(a);
     // zero pivots only, as MA27 and MUMPS (IPOPT's settings) report singularity: a threshold
     // relative to the largest entry would call every matrix singular once IPOPT's bound terms
@@ -783,6 +802,10 @@ struct Solver {
   }
 
   void solve(double* x) {
+    if (pair_used) {
+      pair->solve(x);
+      return;
+    }
     for (int q = 0; q < n; ++q) rhs(q) = x[order[q]] * sc[order[q]];
     const int nb = static_cast<int>(blocks.size());
     for (int b = 0; b < nb; ++b) {
@@ -835,6 +858,12 @@ RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int
     INFO[0] = rc > 0 ? -rc : -100 + rc;
     INFO[1] = solver->max_block;
     return;
+  }
+  // the pair step first, where the pattern fits (FATIGUE_PIN_RICCATI_PAIR=0: the block LDL^T only)
+  const char* use_pair = std::getenv("FATIGUE_PIN_RICCATI_PAIR");
+  if (!(use_pair && std::strcmp(use_pair, "0") == 0)) {
+    solver->pair = std::make_unique<pairstep::PairSolver>();
+    if (!solver->pair->analyse(*N, *NZ, IRN, ICN)) solver->pair.reset();
   }
   int handle;
   {
@@ -899,6 +928,24 @@ RICCATI_EXPORT int riccati_max_block(int n, int nz, const int* irn, const int* j
   *nblocks = static_cast<int>(s.blocks.size());
   if (rc == -1) return -1;
   return s.max_block;
+}
+
+// Analysis only: the pair step's stage count on this pattern (0: the structure does not fit and
+// every factorisation uses the block LDL^T).
+RICCATI_EXPORT int riccati_pair_stages(int n, int nz, const int* irn, const int* jcn) {
+  pairstep::PairSolver p;
+  return p.analyse(n, nz, irn, jcn) ? p.nstages : 0;
+}
+
+// Factorisations made by each method by the newest solver (the last analysis: tests, benchmarks).
+RICCATI_EXPORT void riccati_pair_counts(long* pair, long* block) {
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  *pair = 0;
+  *block = 0;
+  if (!registry.empty() && registry.back()) {
+    *pair = registry.back()->pair_factors;
+    *block = registry.back()->block_factors;
+  }
 }
 
 }  // extern "C"

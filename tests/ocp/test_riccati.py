@@ -61,7 +61,12 @@ def iterations(nlp, bounds, linear_solver):
 @pytest.mark.parametrize("states_first", [False, True])
 def test_ipopt_iterates_are_mumps_iterates(states_first):
     nlp, bounds = pendulum(states_first=states_first)
-    ric, mumps = iterations(nlp, bounds, "riccati"), iterations(nlp, bounds, "mumps")
+    lib = ctypes.CDLL(str(riccati_library()))  # loaded first: IPOPT unloads it with its solver
+    ric = iterations(nlp, bounds, "riccati")
+    # the pair step (src/riccati_pair.hpp) factorised the iterations with no regularisation of the rows
+    pair, block = pair_counts(lib)
+    assert pair > 0, (pair, block)
+    mumps = iterations(nlp, bounds, "mumps")
     assert ric["return_status"] == mumps["return_status"] == "Solve_Succeeded"
     assert ric["iter_count"] == mumps["iter_count"]
     a, b = ric["iterations"], mumps["iterations"]
@@ -142,6 +147,49 @@ def test_inertia_is_the_eigenvalue_count(seed):
     assert flag == 0
     assert negative == int(np.sum(np.linalg.eigvalsh(K) < 0))
     np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
+
+
+def pair_counts(lib) -> tuple[int, int]:
+    """(pair-step, block LDL^T) factorisations of the library's last analysed solver."""
+    p, b = ctypes.c_long(0), ctypes.c_long(0)
+    lib.riccati_pair_counts(ctypes.byref(p), ctypes.byref(b))
+    return p.value, b.value
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("delta_c", [0.0, 1e-8])
+def test_pair_step_inertia_and_solution(seed, delta_c):
+    """The pair step (src/riccati_pair.hpp) takes these systems when the dynamics rows carry no
+    regularisation (delta_c = 0); with delta_c != 0 the factorisation falls back to the block LDL^T.
+    Either way: the eigenvalue count and the solution."""
+    lib = ctypes.CDLL(str(riccati_library()))
+    rng = np.random.default_rng(100 + seed)
+    if seed < 4:
+        K = random_kkt(rng, hessian_scale=[0.1, 1.0, 10.0, 1.0][seed])
+    else:
+        K = random_kkt(rng, stages=8, nx=12, nu=4, hessian_scale=[0.1, 1.0, 3.0, 10.0][seed - 4], group=3)
+    stages, nx = (12, 4) if seed < 4 else (8, 12)
+    nw = len(K) - stages * nx
+    K[nw:, nw:] = -delta_c * np.eye(len(K) - nw)
+    rows, cols = np.nonzero(np.tril(K) + np.eye(len(K)))
+    b = rng.normal(size=len(K))
+    flag, negative, x = ma27(lib, rows, cols, K[rows, cols], len(K), b)
+    assert flag == 0
+    assert pair_counts(lib) == ((1, 0) if delta_c == 0.0 else (0, 1))
+    assert negative == int(np.sum(np.linalg.eigvalsh(K) < 0))
+    np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
+
+
+def test_pair_step_off_by_environment(monkeypatch):
+    lib = ctypes.CDLL(str(riccati_library()))
+    K = random_kkt(np.random.default_rng(3))
+    nw = len(K) - 12 * 4
+    K[nw:, nw:] = 0.0
+    rows, cols = np.nonzero(np.tril(K) + np.eye(len(K)))
+    monkeypatch.setenv("FATIGUE_PIN_RICCATI_PAIR", "0")
+    flag, negative, x = ma27(lib, rows, cols, K[rows, cols], len(K), np.ones(len(K)))
+    assert flag == 0 and pair_counts(lib) == (0, 1)
+    assert negative == int(np.sum(np.linalg.eigvalsh(K) < 0))
 
 
 def test_a_singular_matrix_is_reported():
