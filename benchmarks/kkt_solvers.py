@@ -18,7 +18,9 @@ Per case, the first window is solved ``--repeats`` times with each solver, alter
   factorisation timer reads 0 and the back-solve timer does not hold MUMPS's whole work, so only
   the next column compares the two), IPOPT's own time per iteration (IPOPT's OverallAlgorithm wall
   time minus the NLP function evaluations: the KKT solves and IPOPT's vector work), the window's wall
-  time, and the stage-wise solver's blocks (count, largest).
+  time, IPOPT's symbolic analysis of the pattern per solve (LinearSystemSymbolicFactorization: with
+  ``riccati`` the first solve analyses, later solves of the same pattern copy that analysis), and
+  the stage-wise solver's blocks (count, largest).
 """
 
 from __future__ import annotations
@@ -151,7 +153,7 @@ def main() -> None:
     args = ap.parse_args()
     solvers = args.solvers.split(",")
     print(f"{'case':6} {'solver':13} {'iters':>5} {'objective':>22} {'KKT ms/iter':>11} {'factor ms':>9} {'solves ms':>9} "
-          f"{'IPOPT ms/iter':>13} {'window s':>8}  blocks")
+          f"{'IPOPT ms/iter':>13} {'analysis ms':>11} {'window s':>8}  blocks")
     for case in args.cases.split(","):
         built = {s: first_window(CASES[case], linear_solver_of(s)) for s in solvers}
         runs: dict[str, list[dict]] = {s: [] for s in solvers}
@@ -169,9 +171,10 @@ def main() -> None:
             sol = [r["backsolve"] / max(1, r["iterations"] + 1) * 1e3 for r in runs[s]]
             wall = [r["wall"] for r in runs[s]]
             inner = [r["ipopt"] / max(1, r["iterations"]) * 1e3 for r in runs[s]]
+            symbolic = [r["symbolic"] * 1e3 for r in runs[s]]
             obj = last[s]["record"]["obj"][-1] if last[s]["record"] else float("nan")
             print(f"{case:6} {s:13} {it:5d} {obj:22.15e} {statistics.median(per):11.3f} {statistics.median(fac):9.3f} "
-                  f"{statistics.median(sol):9.3f} {statistics.median(inner):13.2f} {statistics.median(wall):8.3f}  {blocks(built[s][0])}"
+                  f"{statistics.median(sol):9.3f} {statistics.median(inner):13.2f} {statistics.median(symbolic):11.2f} {statistics.median(wall):8.3f}  {blocks(built[s][0])}"
                   + (f"; pair/block factorisations {last[s]['counts']}" if last[s].get("counts") else ""))
         pairs = [(x, y) for i, x in enumerate(solvers) for y in solvers[i + 1:]]
         for sa, sb in pairs:

@@ -489,6 +489,16 @@ IVec primal_levels(int p, const std::vector<std::vector<int>>& adj, const IVec& 
   return result;
 }
 
+// An owning pointer copied deeply (a Solver is copied from the analyses kept by pattern).
+template <class T>
+struct DeepPtr : std::unique_ptr<T> {
+  DeepPtr() = default;
+  DeepPtr(DeepPtr&&) noexcept = default;
+  DeepPtr& operator=(DeepPtr&&) noexcept = default;
+  DeepPtr(const DeepPtr& o) : std::unique_ptr<T>(o ? std::make_unique<T>(*o) : nullptr) {}
+  DeepPtr& operator=(const DeepPtr&) = delete;
+};
+
 struct Solver {
   int n = 0, nz = 0;
   IVec order;  // position -> index
@@ -506,7 +516,7 @@ struct Solver {
   bool singular = false;
   int max_block = 0;
   const void* ikeep = nullptr;
-  std::unique_ptr<pairstep::PairSolver> pair;  // the pair-step recursion, when the structure fits
+  DeepPtr<pairstep::PairSolver> pair;  // the pair-step recursion, when the structure fits
   bool pair_used = false;                       // the last factorisation is the pair step's
   long pair_factors = 0, block_factors = 0;     // counts (riccati_pair_stats)
 
@@ -833,6 +843,48 @@ Solver* lookup(int handle) {
   return registry[handle - 1].get();
 }
 
+// Analyses kept by pattern. IPOPT analyses the pattern again at every optimisation, and a
+// closed loop's re-plans, a sliding run's windows and a sweep's runs hand over the same pattern
+// each time: a pattern met before (the same n, triplets and pair-step switch, compared in full)
+// gets a copy of its analysed solver, never factorised, instead of a new analysis.
+struct Analysis {
+  int n = 0, nz = 0;
+  bool pair_on = false;
+  IVec irn, icn;
+  std::unique_ptr<Solver> solver;
+};
+constexpr size_t ANALYSES = 4;  // patterns kept, the most recently used last
+std::mutex analyses_mutex;
+std::vector<Analysis> analyses;
+
+bool same_pattern(const Analysis& a, int n, int nz, const int* irn, const int* icn, bool pair_on) {
+  return a.n == n && a.nz == nz && a.pair_on == pair_on &&
+         std::equal(a.irn.begin(), a.irn.end(), irn) && std::equal(a.icn.begin(), a.icn.end(), icn);
+}
+
+std::unique_ptr<Solver> analysed_copy(int n, int nz, const int* irn, const int* icn, bool pair_on) {
+  std::lock_guard<std::mutex> lock(analyses_mutex);
+  for (size_t k = 0; k < analyses.size(); ++k) {
+    if (!same_pattern(analyses[k], n, nz, irn, icn, pair_on)) continue;
+    std::rotate(analyses.begin() + k, analyses.begin() + k + 1, analyses.end());
+    return std::make_unique<Solver>(*analyses.back().solver);
+  }
+  return nullptr;
+}
+
+void remember_analysis(int n, int nz, const int* irn, const int* icn, bool pair_on, const Solver& s) {
+  Analysis a;
+  a.n = n;
+  a.nz = nz;
+  a.pair_on = pair_on;
+  a.irn.assign(irn, irn + std::max(nz, 0));
+  a.icn.assign(icn, icn + std::max(nz, 0));
+  a.solver = std::make_unique<Solver>(s);
+  std::lock_guard<std::mutex> lock(analyses_mutex);
+  if (analyses.size() >= ANALYSES) analyses.erase(analyses.begin());
+  analyses.push_back(std::move(a));
+}
+
 }  // namespace
 
 #define RICCATI_EXPORT __attribute__((visibility("default")))
@@ -851,20 +903,25 @@ RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int
   for (int i = 0; i < 20; ++i) INFO[i] = 0;
   *OPS = 0.0;
   *NSTEPS = 1;
-  auto solver = std::make_unique<Solver>();
-  solver->ikeep = IKEEP;
-  const int rc = solver->analyse(*N, *NZ, IRN, ICN);
-  if (rc != 0) {
-    INFO[0] = rc > 0 ? -rc : -100 + rc;
-    INFO[1] = solver->max_block;
-    return;
-  }
   // the pair step first, where the pattern fits (FATIGUE_PIN_RICCATI_PAIR=0: the block LDL^T only)
   const char* use_pair = std::getenv("FATIGUE_PIN_RICCATI_PAIR");
-  if (!(use_pair && std::strcmp(use_pair, "0") == 0)) {
-    solver->pair = std::make_unique<pairstep::PairSolver>();
-    if (!solver->pair->analyse(*N, *NZ, IRN, ICN)) solver->pair.reset();
+  const bool pair_on = !(use_pair && std::strcmp(use_pair, "0") == 0);
+  std::unique_ptr<Solver> solver = analysed_copy(*N, *NZ, IRN, ICN, pair_on);
+  if (!solver) {
+    solver = std::make_unique<Solver>();
+    const int rc = solver->analyse(*N, *NZ, IRN, ICN);
+    if (rc != 0) {
+      INFO[0] = rc > 0 ? -rc : -100 + rc;
+      INFO[1] = solver->max_block;
+      return;
+    }
+    if (pair_on) {
+      solver->pair.reset(new pairstep::PairSolver());
+      if (!solver->pair->analyse(*N, *NZ, IRN, ICN)) solver->pair.reset();
+    }
+    remember_analysis(*N, *NZ, IRN, ICN, pair_on, *solver);
   }
+  solver->ikeep = IKEEP;
   int handle;
   {
     std::lock_guard<std::mutex> lock(registry_mutex);

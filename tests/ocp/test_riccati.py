@@ -180,6 +180,33 @@ def test_pair_step_inertia_and_solution(seed, delta_c):
     np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
 
 
+def test_analyses_kept_by_pattern_solve_each_matrix():
+    """The library keeps its analyses by pattern (a re-plan or a sliding window hands IPOPT the same
+    pattern again): a pattern met again, after others and after more patterns than it keeps, with
+    new values, and two patterns of the same size and count that differ in one entry, each give
+    their own matrix's solution and inertia."""
+    lib = ctypes.CDLL(str(riccati_library()))
+    rng = np.random.default_rng(7)
+
+    def system(drop, seed):
+        K = random_kkt(np.random.default_rng(seed))
+        nw = len(K) - 12 * 4
+        K[nw:, nw:] = 0.0
+        i, j = drop  # one Hessian entry (and its mirror) left out of the pattern
+        K[i, j] = K[j, i] = 0.0
+        rows, cols = np.nonzero(np.tril(K) + np.eye(len(K)))
+        return K, rows, cols
+
+    drops = [(1, 0), (2, 0), (3, 1), (5, 4), (8, 6), (9, 7)]  # the same n and nz, six patterns
+    for seed, d in enumerate([0, 1, 0, 2, 3, 4, 5, 0, 1, 0]):
+        K, rows, cols = system(drops[d], seed)
+        b = rng.normal(size=len(K))
+        flag, negative, x = ma27(lib, rows, cols, K[rows, cols], len(K), b)
+        assert flag == 0 and pair_counts(lib) == (1, 0)
+        assert negative == int(np.sum(np.linalg.eigvalsh(K) < 0))
+        np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
+
+
 def test_pair_step_off_by_environment(monkeypatch):
     lib = ctypes.CDLL(str(riccati_library()))
     K = random_kkt(np.random.default_rng(3))
