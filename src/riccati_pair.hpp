@@ -70,9 +70,9 @@ struct PartialBK {
   std::vector<double> l0v, l1v;
   Mat X, W2, Lw;
   int k0 = 0;
-  const Mat* Kp = nullptr;
+  const Mat* Kp = nullptr;  // the factor's columns, kept outside the front (PairSolver::keep_factor)
 
-  static void swap_sym(Mat& K, int i, int j) {
+  static void swap_sym(Eigen::Ref<Mat> K, int i, int j) {
     if (i == j) return;
     if (i > j) std::swap(i, j);
     const int n = static_cast<int>(K.rows());
@@ -81,7 +81,7 @@ struct PartialBK {
     for (int c = i + 1; c < j; ++c) std::swap(K(c, i), K(j, c));
     for (int r = j + 1; r < n; ++r) std::swap(K(r, i), K(r, j));
   }
-  static double low(const Mat& K, int i, int j) { return i >= j ? K(i, j) : K(j, i); }
+  static double low(const Eigen::Ref<Mat>& K, int i, int j) { return i >= j ? K(i, j) : K(j, i); }
 
   // A pivot step is refused (singular = true) when its candidate column is no larger than CANCEL
   // times the magnitude its diagonal had before cancellation (mag: |the assembled diagonal| + the
@@ -89,12 +89,11 @@ struct PartialBK {
   // arithmetic comes out as round-off, not as zero. A small pivot formed without cancellation
   // (a row after its slack: -c^2 / Sigma_s) passes.
   std::vector<double> mag;
-  void factor(Mat& K, int m_) {
+  void factor(Eigen::Ref<Mat> K, int m_) {
     n = static_cast<int>(K.rows());
     m = m_;
     neg = 0;
     singular = false;
-    Kp = &K;
     swp.assign(m, -1);
     piv2.assign(m, 0);
     dinv.assign(m, 0);
@@ -160,11 +159,13 @@ struct PartialBK {
           if (K(i, k) != 0) nz.push_back(i);
         const int r = nu - k - 1;
         if (static_cast<int>(nz.size()) * 2 > r) {
+          const double* ck = &K(0, k);
           for (int j = k + 1; j < nu; ++j) {
             const double lj = K(j, k) * di;
             if (lj != 0) {
               if (j < m) mag[j] += std::abs(lj * K(j, k));
-              K.col(j).segment(j, nu - j).noalias() -= lj * K.col(k).segment(j, nu - j);
+              double* cj = &K(0, j);  // plain loop: the columns are short (the candidates)
+              for (int i = j; i < nu; ++i) cj[i] -= lj * ck[i];
             }
           }
           K.col(k).segment(k + 1, r) *= di;
@@ -212,10 +213,13 @@ struct PartialBK {
           Eigen::Matrix2d Di;
           Di << ia, ib, ib, ic;
           Lw = W2 * Di;
+          const double* w0 = W2.data();
+          const double* w1 = W2.data() + r;
           for (int j = 0; j < r; ++j) {
             const double a0 = Lw(j, 0), a1 = Lw(j, 1);
             if (k + 2 + j < m) mag[k + 2 + j] += std::abs(a0 * W2(j, 0)) + std::abs(a1 * W2(j, 1));
-            K.col(k + 2 + j).segment(k + 2 + j, r - j) -= a0 * W2.col(0).tail(r - j) + a1 * W2.col(1).tail(r - j);
+            double* cj = &K(k + 2, k + 2 + j);  // rows k + 2 + i, i >= j
+            for (int i = j; i < r; ++i) cj[i] -= a0 * w0[i] + a1 * w1[i];
           }
           K.block(k + 2, k, r, 2) = Lw;
         } else {
@@ -349,12 +353,18 @@ struct Stage {
   IVec front;            // loc, xs (global ids); J follows in the extended front
   std::vector<std::array<int, 3>> ent;   // (front row, front column, triplet), row >= column
   std::vector<std::array<int, 3>> cent;  // C: (lam index, front position, triplet)
+  std::vector<std::array<int, 3>> ccent;  // the same, by front position (the pair step's products)
+  IVec ccol, cptr;       // C's columns (the distinct front positions it touches, ascending) and
+                         // their entries' ranges in ccent
   std::vector<IVec> eslot, dslot;  // per lam row: E's triplets, its diagonal's (duplicates are summed)
   IVec Jpos;             // the next stage's J: positions in this front
   PartialBK bk;
-  Mat K;                 // the front, factorised in place; its trailing block (from m) is the Schur
-                         // block S on [xs; J], made symmetric in place (Sb)
-  Eigen::Block<Mat> Sb() { return K.bottomRightCorner(K.rows() - m, K.rows() - m); }
+  // The front is factorised in PairSolver's scratch F (one buffer for all stages, so it stays
+  // in cache; zeroing and assembling a cold front per stage was a quarter of the factor time).
+  // Kept per stage, for the solve and the next stage's pair step:
+  Mat L;                 // F's first m columns: the local factor (read through bk's L(i, k))
+  Mat S;                 // the Schur block on [xs; J] (F's trailing block from m), symmetric
+  Mat& Sb() { return S; }
   Vec e, yl;
   int m = 0, nf = 0;
 };
@@ -373,7 +383,9 @@ struct PairSolver {
   IVec ti, tj;  // the triplets (0-based)
   std::vector<Stage> st;
   std::vector<double> sc, av;  // equilibration; the equilibrated values
-  Mat T, G, Tt;
+  std::vector<double> fbuf;  // the front being factorised (scratch, the largest front's size)
+  Mat Tc, Tct;               // the pair step's products
+  std::vector<double> cv, w;  // Ct's values; one column of Ct^T P Ct
   Vec fv, gv, a, l, u, zJ, r, x;
   int negative = 0;
 
@@ -579,6 +591,18 @@ struct PairSolver {
     for (auto& s : st)
       for (const IVec& e : s.eslot)
         if (e.empty()) return fail(__LINE__);
+    for (auto& s : st) {  // C by column, for the pair step's products
+      s.ccent = s.cent;
+      std::stable_sort(s.ccent.begin(), s.ccent.end(), [](const std::array<int, 3>& c1, const std::array<int, 3>& c2) { return c1[1] < c2[1]; });
+      s.ccol.clear();
+      s.cptr.clear();
+      for (size_t t = 0; t < s.ccent.size(); ++t)
+        if (t == 0 || s.ccent[t][1] != s.ccent[t - 1][1]) {
+          s.ccol.push_back(s.ccent[t][1]);
+          s.cptr.push_back(static_cast<int>(t));
+        }
+      s.cptr.push_back(static_cast<int>(s.ccent.size()));
+    }
     for (int k = 0; k < S; ++k)
       if (st[k].lam.size() != st[k + 1].xs.size()) return fail(__LINE__);
     r.resize(n);
@@ -605,9 +629,10 @@ struct PairSolver {
     for (int k = S; k >= 0; --k) {
       Stage& s = st[k];
       const int nn = s.nf + static_cast<int>(s.J.size());
-      if (s.K.rows() != nn) s.K.resize(nn, nn);
-      s.K.triangularView<Eigen::Lower>().setZero();
-      for (const auto& q : s.ent) s.K(q[0], q[1]) += av[q[2]];
+      if (fbuf.size() < static_cast<size_t>(nn) * nn) fbuf.resize(static_cast<size_t>(nn) * nn);
+      Eigen::Map<Mat> K(fbuf.data(), nn, nn);
+      K.triangularView<Eigen::Lower>().setZero();
+      for (const auto& q : s.ent) K(q[0], q[1]) += av[q[2]];
       if (k < S) {
         const int nl = static_cast<int>(s.lam.size());
         s.e.resize(nl);
@@ -619,44 +644,93 @@ struct PairSolver {
           s.e[i] = e;
           if (s.e[i] == 0 || !std::isfinite(s.e[i])) return false;
         }
-        const auto P = st[k + 1].Sb();  // over the next stage's [xs; J]
+        const Mat& P = st[k + 1].Sb();  // over the next stage's [xs; J]
         const int nJn = static_cast<int>(st[k + 1].J.size());
-        T.setZero(nl, nn);
-        G.setZero(nJn, nn);
-        for (const auto& q : s.cent) {
-          const double c = av[q[2]] / s.e[q[0]];
-          T.col(q[1]).noalias() += P.col(q[0]).head(nl) * c;
-          if (nJn) G.col(q[1]).noalias() += P.col(q[0]).tail(nJn) * c;
-        }
-        Tt = T.transpose();
-        for (const auto& q : s.cent) {
-          const double c = av[q[2]] / s.e[q[0]];
-          s.K.col(q[1]).tail(nn - q[1]) += c * Tt.col(q[0]).tail(nn - q[1]);
-        }
+        add_ct_p_ct(s, P, K, nl, nJn);
         const IVec& Jp = s.Jpos;
         for (int a1 = 0; a1 < nJn; ++a1) {
           const int ja = Jp[a1];
           // K -= G^T e_a + e_a G (lower triangle): row ja left of the diagonal, column ja below
-          for (int c = 0; c < ja; ++c) s.K(ja, c) -= G(a1, c);
-          for (int i = ja; i < nn; ++i) s.K(i, ja) -= G(a1, i);
-          s.K(ja, ja) -= G(a1, ja);
+          // (G's columns are Ct's: zero elsewhere)
+          for (size_t b = 0; b < s.ccol.size(); ++b) {
+            const int c = s.ccol[b];
+            const double g = Tc(nl + a1, b);
+            if (c < ja) K(ja, c) -= g;
+            else K(c, ja) -= c == ja ? 2 * g : g;
+          }
           for (int b1 = 0; b1 < nJn; ++b1) {
             const int jb = Jp[b1];
-            if (ja >= jb) s.K(ja, jb) += P(nl + a1, nl + b1);
+            if (ja >= jb) K(ja, jb) += P(nl + a1, nl + b1);
           }
         }
         negative += nl;
       }
-      s.bk.factor(s.K, s.m);
+      s.bk.factor(K, s.m);
       if (s.bk.singular) return false;
       negative += s.bk.neg;
-      if (s.m < nn) {
-        auto Sk = s.Sb();
-        Sk.triangularView<Eigen::StrictlyUpper>() = Sk.transpose();
-        if (!Sk.allFinite()) return false;
-      }
+      keep_factor(s, K);
+      if (s.m < nn && !s.S.allFinite()) return false;
     }
     return true;
+  }
+
+  // The pair step's products on the front K (lower triangle): K += Ct^T P_xx Ct, and
+  // Tc = [P_xx; P_Jx] Ct (its rows nl.. are G = B^T Ct, which the caller subtracts on the J
+  // rows). Ct is sparse (s.cent: the dynamics rows' entries on this front, over E) and its columns
+  // (s.ccol) are a part of the front (UR5: 66 of 108), so both products run over its entries
+  // column by column (one column of Tc or of the result stays in L1), and Tc and the result
+  // are kept compressed to those columns. Plain loops: the columns are 48-66 long, too short
+  // for Eigen's per-expression overhead.
+  void add_ct_p_ct(const Stage& s, const Mat& P, Eigen::Map<Mat>& K, int nl, int nJn) {
+    const int nS = nl + nJn, nc = static_cast<int>(s.ccol.size());
+    const int ne = static_cast<int>(s.ccent.size());
+    cv.resize(ne);
+    for (int t = 0; t < ne; ++t) cv[t] = av[s.ccent[t][2]] / s.e[s.ccent[t][0]];
+    Tc.resize(nS, nc);
+    for (int a = 0; a < nc; ++a)  // Tc's column a = sum of c * P's column l over C's column
+      combine(Tc.data() + static_cast<Eigen::Index>(a) * nS, nS, P.data(), nS, 0, s, a);
+    Tct = Tc.topRows(nl).transpose();  // nc x nl
+    w.resize(nc);
+    for (int a = 0; a < nc; ++a) {  // column ccol[a] of Ct^T (P Ct), rows ccol[a..nc)
+      const int len = nc - a;
+      double* wp = w.data();
+      combine(wp, len, Tct.data(), nc, a, s, a);
+      double* kc = K.data() + static_cast<Eigen::Index>(s.ccol[a]) * K.rows();
+      for (int b = 0; b < len; ++b) kc[s.ccol[a + b]] += wp[b];
+    }
+  }
+
+  // out[0..len) = sum over C's column a's entries t of cv[t] * X(off + 0..len, l_t), X's column l
+  // at base + l * ld. Eight rows at a time in registers: one load per multiply-add, where an axpy
+  // per entry needs two loads and a store (the machine's limit, not its multiply-adds).
+  void combine(double* out, int len, const double* base, Eigen::Index ld, int off, const Stage& s, int a) const {
+    const int t0 = s.cptr[a], t1 = s.cptr[a + 1];
+    int i0 = 0;
+    for (; i0 + 8 <= len; i0 += 8) {
+      double acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+      for (int t = t0; t < t1; ++t) {
+        const double c = cv[t];
+        const double* x = base + static_cast<Eigen::Index>(s.ccent[t][0]) * ld + off + i0;
+        for (int u = 0; u < 8; ++u) acc[u] += c * x[u];
+      }
+      for (int u = 0; u < 8; ++u) out[i0 + u] = acc[u];
+    }
+    for (; i0 < len; ++i0) {
+      double acc = 0;
+      for (int t = t0; t < t1; ++t) acc += cv[t] * base[static_cast<Eigen::Index>(s.ccent[t][0]) * ld + off + i0];
+      out[i0] = acc;
+    }
+  }
+
+  // Copies what the solve and the next stage need out of the scratch front F: the local factor's
+  // columns and the Schur block, symmetrised (upper := lower).
+  void keep_factor(Stage& s, Eigen::Map<Mat>& F) {
+    const int nn = static_cast<int>(F.rows()), m = s.m, r = nn - m;
+    s.L = F.leftCols(m);
+    s.bk.Kp = &s.L;
+    auto Fs = F.bottomRightCorner(r, r);
+    Fs.triangularView<Eigen::StrictlyUpper>() = Fs.transpose();
+    s.S = Fs;
   }
 
   void solve(double* rhs) {
