@@ -6,8 +6,8 @@ Usage::
     python benchmarks/kkt_solvers.py [--cases arm26,ur5] [--repeats 5] [--iterations 10]
 
 Cases: ``arm26`` the paper's sliding study (studies/curl_sliding_fatigue_paper.toml), ``ur5``
-benchmarks/studies/ur5_scale.toml and ``muscles`` studies/curl_muscles_sliding.toml, first window
-each (the compiled library from the cache).
+benchmarks/studies/ur5_scale.toml, ``panda`` benchmarks/studies/panda_scale.toml and ``muscles``
+studies/curl_muscles_sliding.toml, first window each (the compiled library from the cache).
 
 Per case, the first window is solved ``--repeats`` times with each solver, alternating. Printed:
 
@@ -41,6 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CASES = {
     "arm26": ROOT / "studies" / "curl_sliding_fatigue_paper.toml",
     "ur5": ROOT / "benchmarks" / "studies" / "ur5_scale.toml",
+    "panda": ROOT / "benchmarks" / "studies" / "panda_scale.toml",
     "muscles": ROOT / "studies" / "curl_muscles_sliding.toml",
 }
 SOLVERS = ("riccati", "mumps")

@@ -390,7 +390,19 @@ struct PairSolver {
   int negative = 0;
 
   // Returns false when the structure does not fit (the block LDL^T is then the only method).
+  // The structure, or false (no pair path). The first control B is found as below, lowered to
+  // the first of its node's controls (widen); should that structure fail the checks, the
+  // analysis is made again with B as found.
   bool analyse(int n_, int nz_, const int* irn, const int* jcn) {
+    if (analyse_from(n_, nz_, irn, jcn, true)) return true;
+    if (!widened) return false;  // the same B: a second analysis would repeat the first
+    *this = PairSolver();
+    return analyse_from(n_, nz_, irn, jcn, false);
+  }
+
+  bool widened = false;  // the analysis lowered B (analyse)
+
+  bool analyse_from(int n_, int nz_, const int* irn, const int* jcn, bool widen) {
     n = n_;
     nz = nz_;
     ti.resize(nz);
@@ -441,6 +453,33 @@ struct PairSolver {
         B = v;
         break;
       }
+    // Rows that reach every control of their node (a dense input matrix: torques through the mass
+    // matrix) all have their node's last control as their highest variable, which the rule above
+    // then takes for B. Lowered to the node's first control: the lowest of the variables that all
+    // those rows touch (the node's controls, and states) above every variable that only some of
+    // them touch (their partners, the next states).
+    if (widen && B < p) {
+      IVec rows_b, count(p, 0);
+      for (int rr = p; rr < n; ++rr)
+        if (!is_ineq[rr] && !rv[rr].empty() && rv[rr].back() == B) rows_b.push_back(rr);
+      for (int rr : rows_b)
+        for (int v : rv[rr]) ++count[v];
+      const int all = static_cast<int>(rows_b.size());
+      int below = -1;  // the highest variable not touched by all of them
+      for (int rr : rows_b)
+        for (int v : rv[rr])
+          if (count[v] < all) below = std::max(below, v);
+      if (below >= 0) {
+        int lowest = B;
+        for (int v = below + 1; v < B; ++v)
+          if (count[v] == all) {
+            lowest = v;
+            break;
+          }
+        widened = lowest != B;
+        B = lowest;
+      }
+    }
     // a row's partner: its highest variable below B; several rows naming one variable: the row
     // reaching the lowest index (the dynamics row reaches back into the previous node)
     IVec defrow(p, -1);

@@ -290,3 +290,37 @@ def test_auto_takes_the_stage_wise_solver_where_its_stages_are_small(capsys, cou
     a, b = solver.solve(np.zeros(0), np.zeros(nx)), reference.solve(np.zeros(0), np.zeros(nx))
     assert a.status == b.status == "Solve_Succeeded"
     np.testing.assert_allclose(a.f, b.f, rtol=1e-9)
+
+
+def _wide_chain(N: int = 10, nx: int = 60, nu: int = 20) -> ca.Opti:
+    """A linear system of nx states and nu controls over N stages (random A near the identity,
+    dense B: every row of a stage reaches all its controls), controls bounded."""
+    rng = np.random.default_rng(0)
+    A, B = np.eye(nx) + 0.01 * rng.normal(size=(nx, nx)), 0.1 * rng.normal(size=(nx, nu))
+    opti = ca.Opti()
+    X, U = opti.variable(nx, N + 1), opti.variable(nu, N)
+    opti.subject_to(X[:, 0] == 1)
+    for k in range(N):
+        opti.subject_to(X[:, k + 1] == ca.mtimes(A, X[:, k]) + ca.mtimes(B, U[:, k]))
+    opti.subject_to(opti.bounded(-2, U, 2))
+    opti.minimize(ca.sumsqr(X) + ca.sumsqr(U))
+    return opti
+
+
+
+@pytest.mark.parametrize("nx, nu", [(4, 2), (60, 20)])
+def test_the_pair_step_takes_stages_whose_rows_reach_every_control(nx, nu):
+    """Every row of a stage reaching all its controls: the analysis must take the node's first
+    control as the first control (not its last, the highest variable of those rows). Every
+    factorisation is then the pair step's, and the iterations and the optimum are MUMPS's."""
+    opti = _wide_chain(nx=nx, nu=nu)
+    solver = NlpSolver(opti, SolverOptions(linear_solver="riccati", compile=False), name=f"pair_wide_{nx}")
+    assert solver.options.linear_solver == "riccati"
+    reference = NlpSolver(_wide_chain(nx=nx, nu=nu), SolverOptions(linear_solver="mumps", compile=False), name=f"pair_wide_{nx}_mumps")
+    lib = ctypes.CDLL(str(riccati_library()))  # loaded first: IPOPT unloads it with its solver
+    a, b = solver.solve(np.zeros(0), np.zeros(opti.nx)), reference.solve(np.zeros(0), np.zeros(opti.nx))
+    assert a.status == b.status == "Solve_Succeeded"
+    np.testing.assert_allclose(a.f, b.f, rtol=1e-9)
+    assert a.iterations == b.iterations
+    pair, block = pair_counts(lib)
+    assert pair > 0 and block == 0, (pair, block)
