@@ -772,6 +772,19 @@ struct PairSolver {
     s.S = Fs;
   }
 
+  // The pair (x_k, lam_{k-1})'s right-hand side from v: fv on stage k's states, gv on stage
+  // k-1's dynamics rows; returns their count.
+  int pair_rhs(const Stage& s, const Stage& q, const Vec& v) {
+    const int nx = static_cast<int>(q.lam.size());
+    fv.resize(nx);
+    gv.resize(nx);
+    for (int i = 0; i < nx; ++i) {
+      fv[i] = v[s.xs[i]];
+      gv[i] = v[q.lam[i]];
+    }
+    return nx;
+  }
+
   void solve(double* rhs) {
     for (int i = 0; i < n; ++i) r[i] = rhs[i] * sc[i];
     const int S = nstages - 1;
@@ -784,13 +797,7 @@ struct PairSolver {
       for (int i = m; i < nn; ++i) r[i < s.nf ? s.front[i] : s.J[i - s.nf]] = s.yl[i];
       if (k > 0) {  // the pair (x_k, lam_{k-1}): stage k-1's right-hand side -= B^T a + C^T l
         const Stage& q = st[k - 1];
-        const int nx = static_cast<int>(q.lam.size());
-        fv.resize(nx);
-        gv.resize(nx);
-        for (int i = 0; i < nx; ++i) {
-          fv[i] = r[s.xs[i]];
-          gv[i] = r[q.lam[i]];
-        }
+        const int nx = pair_rhs(s, q, r);
         a = gv.cwiseQuotient(q.e);
         l = (fv - s.Sb().topLeftCorner(nx, nx) * a).cwiseQuotient(q.e);
         for (const auto& c : q.cent) r[q.front[c[1]]] -= av[c[2]] * l[c[0]];
@@ -805,13 +812,7 @@ struct PairSolver {
       const int nJ = static_cast<int>(s.J.size()), nn = s.nf + nJ, m = s.m;
       if (k > 0) {
         const Stage& q = st[k - 1];
-        const int nx = static_cast<int>(q.lam.size());
-        fv.resize(nx);
-        gv.resize(nx);
-        for (int i = 0; i < nx; ++i) {
-          fv[i] = r[s.xs[i]];
-          gv[i] = r[q.lam[i]];
-        }
+        const int nx = pair_rhs(s, q, r);
         for (const auto& c : q.cent) gv[c[0]] -= av[c[2]] * x[q.front[c[1]]];
         if (nJ) {
           zJ.resize(nJ);

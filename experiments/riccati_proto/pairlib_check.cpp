@@ -4,7 +4,9 @@
 // min_refinement_steps = 1), and the CPU time of the factorisation and of one solve (medians over
 // REPS repeats, the two methods alternating). Both methods are the same library loaded once; the
 // method is chosen at the analysis by FATIGUE_PIN_RICCATI_PAIR (0: block LDL^T only). ONLY_PAIR=1:
-// the pair step alone (profiling).
+// the pair step alone (profiling). AB=/path/B.so: an A/B of two builds instead, both with the pair
+// step, alternating in one process (A: the first library, B: this one; columns "block" and "pair"
+// then read A and B).
 //
 //   g++ -O2 experiments/riccati_proto/pairlib_check.cpp -o /tmp/ric2/check -ldl
 //   /tmp/ric2/check fatigue_pin/libfatigue_pin_riccati.so /tmp/ric/ur5 [REPS]
@@ -39,15 +41,22 @@ struct Method {
 };
 
 int main(int argc, char** argv) {
-  void* lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-  if (!lib) {
-    std::printf("%s\n", dlerror());
-    return 1;
+  const char* other = std::getenv("AB");  // an A/B of two builds' pair steps
+  Ad ad[2];
+  Bd bd[2];
+  Cd cd[2];
+  Counts counts = nullptr;
+  for (int w = 0; w < 2; ++w) {
+    void* lib = dlopen(w == 1 && other ? other : argv[1], RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+      std::printf("%s\n", dlerror());
+      return 1;
+    }
+    ad[w] = reinterpret_cast<Ad>(dlsym(lib, "ma27ad_"));
+    bd[w] = reinterpret_cast<Bd>(dlsym(lib, "ma27bd_"));
+    cd[w] = reinterpret_cast<Cd>(dlsym(lib, "ma27cd_"));
+    counts = reinterpret_cast<Counts>(dlsym(lib, "riccati_pair_counts"));
   }
-  auto ad = reinterpret_cast<Ad>(dlsym(lib, "ma27ad_"));
-  auto bd = reinterpret_cast<Bd>(dlsym(lib, "ma27bd_"));
-  auto cd = reinterpret_cast<Cd>(dlsym(lib, "ma27cd_"));
-  auto counts = reinterpret_cast<Counts>(dlsym(lib, "riccati_pair_counts"));
   const std::string base = argv[2];
   const int reps = argc > 3 ? std::atoi(argv[3]) : 7;
   const int only_pair = std::getenv("ONLY_PAIR") ? 1 : 0;  // profiling: the pair step alone
@@ -59,10 +68,10 @@ int main(int argc, char** argv) {
   std::fclose(f);
   Method M[2];  // 0: block LDL^T, 1: pair step
   for (int w = 0; w < 2; ++w) {
-    setenv("FATIGUE_PIN_RICCATI_PAIR", w ? "1" : "0", 1);
+    setenv("FATIGUE_PIN_RICCATI_PAIR", w || other ? "1" : "0", 1);
     int liw = 16, iw1[64], nsteps, iflag = 0;
     double ops;
-    ad(&N, &NZ, irn.data(), jcn.data(), M[w].iw, &liw, M[w].ikeep, iw1, &nsteps, &iflag, M[w].icntl, M[w].cntl, M[w].info, &ops);
+    ad[w](&N, &NZ, irn.data(), jcn.data(), M[w].iw, &liw, M[w].ikeep, iw1, &nsteps, &iflag, M[w].icntl, M[w].cntl, M[w].info, &ops);
     if (M[w].info[0] != 0) {
       std::printf("analysis failed (method %d): %d\n", w, M[w].info[0]);
       return 1;
@@ -103,20 +112,20 @@ int main(int argc, char** argv) {
         std::vector<double> a = A;
         int la = NZ, liw = 16, nsteps = 1, maxfrt = 1, iw1[64];
         const double t0 = cpu_ms();
-        bd(&N, &NZ, irn.data(), jcn.data(), a.data(), &la, m.iw, &liw, m.ikeep, &nsteps, &maxfrt, iw1, m.icntl, m.cntl, m.info);
+        bd[w](&N, &NZ, irn.data(), jcn.data(), a.data(), &la, m.iw, &liw, m.ikeep, &nsteps, &maxfrt, iw1, m.icntl, m.cntl, m.info);
         const double t1 = cpu_ms();
         neg[w] = m.info[14];
         flag[w] = m.info[0];
         std::vector<double> x = b, wk(N);
         const double t2 = cpu_ms();
-        cd(&N, a.data(), &la, m.iw, &liw, wk.data(), &maxfrt, x.data(), iw1, &nsteps, m.icntl, m.info);
+        cd[w](&N, a.data(), &la, m.iw, &liw, wk.data(), &maxfrt, x.data(), iw1, &nsteps, m.icntl, m.info);
         const double t3 = cpu_ms();
         tfv[w].push_back(t1 - t0);
         tsv[w].push_back(t3 - t2);
         if (rep == 0) {
           std::vector<double> res;
           res1[w] = resid(x, res);
-          cd(&N, a.data(), &la, m.iw, &liw, wk.data(), &maxfrt, res.data(), iw1, &nsteps, m.icntl, m.info);
+          cd[w](&N, a.data(), &la, m.iw, &liw, wk.data(), &maxfrt, res.data(), iw1, &nsteps, m.icntl, m.info);
           for (int i = 0; i < N; ++i) x[i] += res[i];
           res2[w] = resid(x, res);
         }
