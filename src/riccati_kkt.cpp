@@ -722,7 +722,8 @@ struct Solver {
       B.ldl.n = B.size + static_cast<int>(B.rows.size());
       max_front = std::max(max_front, B.ldl.n);
     }
-    for (auto& w : workspace) w.assign(static_cast<size_t>(max_front) * max_front, 0.0);
+    // the two front workspaces are allocated at the first block factorisation (factor): a copy
+    // from the analyses kept by pattern stays small, and the pair step never needs them
     // where each triplet goes
     by_block.assign(nb, {});
     for (int k = 0; k < nz; ++k) {
@@ -784,6 +785,8 @@ struct Solver {
       return;
     }
     ++block_factors;
+    if (workspace[0].empty())
+      for (auto& w : workspace) w.assign(static_cast<size_t>(max_front) * max_front, 0.0);
     equilibrate(a);
     // zero pivots only, as MA27 and MUMPS (IPOPT's settings) report singularity: a threshold
     // relative to the largest entry would call every matrix singular once IPOPT's bound terms
@@ -848,18 +851,19 @@ Solver* lookup(int handle) {
 // each time: a pattern met before (the same n, triplets and pair-step switch, compared in full)
 // gets a copy of its analysed solver, never factorised, instead of a new analysis.
 struct Analysis {
-  int n = 0, nz = 0;
   bool pair_on = false;
-  IVec irn, icn;
-  std::unique_ptr<Solver> solver;
+  std::unique_ptr<Solver> solver;  // analysed, never factorised; its triplets are the pattern
 };
 constexpr size_t ANALYSES = 4;  // patterns kept, the most recently used last
 std::mutex analyses_mutex;
 std::vector<Analysis> analyses;
 
 bool same_pattern(const Analysis& a, int n, int nz, const int* irn, const int* icn, bool pair_on) {
-  return a.n == n && a.nz == nz && a.pair_on == pair_on &&
-         std::equal(a.irn.begin(), a.irn.end(), irn) && std::equal(a.icn.begin(), a.icn.end(), icn);
+  const Solver& s = *a.solver;
+  if (s.n != n || s.nz != nz || a.pair_on != pair_on) return false;
+  for (int k = 0; k < nz; ++k)  // the solver keeps them 0-based, IPOPT hands them 1-based
+    if (s.tri_i[k] != irn[k] - 1 || s.tri_j[k] != icn[k] - 1) return false;
+  return true;
 }
 
 std::unique_ptr<Solver> analysed_copy(int n, int nz, const int* irn, const int* icn, bool pair_on) {
@@ -872,13 +876,9 @@ std::unique_ptr<Solver> analysed_copy(int n, int nz, const int* irn, const int* 
   return nullptr;
 }
 
-void remember_analysis(int n, int nz, const int* irn, const int* icn, bool pair_on, const Solver& s) {
+void remember_analysis(bool pair_on, const Solver& s) {
   Analysis a;
-  a.n = n;
-  a.nz = nz;
   a.pair_on = pair_on;
-  a.irn.assign(irn, irn + std::max(nz, 0));
-  a.icn.assign(icn, icn + std::max(nz, 0));
   a.solver = std::make_unique<Solver>(s);
   std::lock_guard<std::mutex> lock(analyses_mutex);
   if (analyses.size() >= ANALYSES) analyses.erase(analyses.begin());
@@ -919,7 +919,7 @@ RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int
       solver->pair.reset(new pairstep::PairSolver());
       if (!solver->pair->analyse(*N, *NZ, IRN, ICN)) solver->pair.reset();
     }
-    remember_analysis(*N, *NZ, IRN, ICN, pair_on, *solver);
+    remember_analysis(pair_on, *solver);
   }
   solver->ikeep = IKEEP;
   int handle;
