@@ -24,7 +24,8 @@ a re-plan every 5 intervals (0.1 s). Configurations (changes of the study, as ``
   force, and its last iterate is the plan.
 * ``rti-K-HESSIAN`` (K = 2..6; HESSIAN ``gauss-newton``, ``one-step`` or ``euler-step``): the
   same with ``solver.hessian`` = HESSIAN, a cheaper Hessian per iteration (the first plan too).
-* ``rti-K-riccati``: the same on the stage-wise KKT solver (the study states MUMPS).
+* ``rti-K-riccati``: the same on the stage-wise KKT solver (the study states MUMPS);
+  ``rti-K-HESSIAN-riccati``: both.
 
 ``--to-exhaustion``: each run goes on until the plant misses a cycle or a re-plan fails
 (``mpc.end = "receding"``, at most 25 cycles), and the table gives the plant's repetitions
@@ -62,6 +63,8 @@ CONFIGS: dict[str, dict] = {
     **{f"rti-{k}-{h}": {"mpc.iterations_per_replan": k, "solver.hessian": h}
        for k in (2, 3, 4, 5, 6) for h in ("gauss-newton", "one-step", "euler-step")},
     **{f"rti-{k}-riccati": {"mpc.iterations_per_replan": k, "solver.linear_solver": "riccati"} for k in (2, 3, 4, 5, 6)},
+    **{f"rti-{k}-{h}-riccati": {"mpc.iterations_per_replan": k, "solver.hessian": h, "solver.linear_solver": "riccati"}
+       for k in (2, 3, 4, 5, 6) for h in ("gauss-newton", "one-step", "euler-step")},
 }
 #: ``--to-exhaustion``: the run ends when the plant is spent, not after ``--replans``
 EXHAUSTION = {"mpc.end": "receding", "horizon.max_cycles": 25}

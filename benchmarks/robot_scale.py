@@ -15,7 +15,8 @@ Cases (studies):
 * ``panda``: benchmarks/studies/panda_scale.toml (fingers locked, 2 kg at the hand), the same.
 
 Configurations (:data:`CONFIGS`): changes of the study (``--set`` syntax) per option; ``exact`` is
-today's default; ``O1`` and ``O2`` compile the library at -O1 or -O2 (with ``-march=native``)
+today's default (the study's own linear solver); ``X-riccati`` and ``X-mumps`` are option ``X``
+on the stage-wise KKT solver or on MUMPS; ``O1`` and ``O2`` compile the library at -O1 or -O2 (with ``-march=native``)
 instead of the default -O3.
 
 Every run is a child process (its own peak memory, ``ru_maxrss``). First every (case,
@@ -67,7 +68,12 @@ CONFIGS: dict[str, dict] = {
     "blas0": {"solver.blas_threads": 0},
     "automatic": {"solver.dynamics_jacobian": "automatic"},
     "one-step-warm": {"solver.hessian": "one-step", "horizon.warm_start": True},
+    "mumps": {"solver.linear_solver": "mumps"},
 }
+# every option again on each linear solver: ``X-riccati`` (the stage-wise KKT solver) and
+# ``X-mumps``, whatever the study states
+CONFIGS.update({f"{name}-{ls}": {**changes, "solver.linear_solver": ls}
+                for name, changes in list(CONFIGS.items()) if name not in ("before", "mumps") for ls in ("riccati", "mumps")})
 
 
 def child(case: str, config: str, windows: int, cache: str, out: str) -> None:
