@@ -10,7 +10,8 @@ whose RK4 error is below verify's default gap tolerances (1e-3 rad, rad/s; 1e-5 
 states) and cheaper than the paper's 50 intervals per cycle uncompiled; the paper's own grid is
 verified in tests/verify/test_verifier.py. The closed-loop study (curl_mpc.toml) is verified
 twice: its model's plan as above, and its closed loop, the plant's run, on its shipped grid
-(:func:`test_the_closed_loop_study_passes_verify_as_shipped`).
+(:func:`test_the_closed_loop_study_passes_verify_as_shipped`, marked slow: 62 s uncompiled; the
+default suite verifies closed-loop runs in tests/verify/test_verify_closed_loop.py).
 """
 
 from __future__ import annotations
@@ -45,9 +46,11 @@ GRID = {"curl_physiological.toml": (50, 8), "bioptim_pendulum_xia.toml": (30, 20
 #: intervals with 8 substeps of 0.0125 s, 35-90 s of solve and 15-60 s of verify; with 4 substeps
 #: of 0.025 s the gaps fail: qdot 6.8e-3 rad/s, fatigue 1.5e-5): run with ``-m slow``. The default
 #: suite verifies a muscle run on polynomial paths in tests/verify/test_verify_muscles.py.
-SLOW = {"curl_muscles_sliding.toml", "curl_muscles_exhaustion.toml", "ur5_motors_paced.toml"}
+SLOW = {"curl_muscles_sliding.toml", "curl_muscles_exhaustion.toml", "ur5_motors_paced.toml", "ur5_mpc.toml"}
 #: (ur5_motors_paced.toml, 17 s, is ur5_motors_lift.toml with a tighter limit and the heat budget:
-#: the lift's short result is verified by default, the budget's rows in tests/drivers/test_heat_budget.py.)
+#: the lift's short result is verified by default, the budget's rows in tests/drivers/test_heat_budget.py.
+#: ur5_mpc.toml's plan, 37 s, is ur5_carry.toml's study on its grid with an elbow range: the carry's
+#: short result is verified by default, a range's rows in tests/verify/test_task_checks.py.)
 #: Models whose studies are verified on their shipped grid (intervals per cycle and substeps as
 #: the study file has them): the UR5's. Measured on one window of one cycle, uncompiled, with
 #: verify's default tolerances: ur5_carry (and ur5_mpc's plan), 20 intervals of 0.1 s with 4
@@ -173,19 +176,18 @@ def test_the_sources_cover_every_file_of_studies():
 UR5 = [source for source in SOURCES if _study(source).data["model"]["urdf"] == "ur5"]
 
 
-def test_the_ur5_studies_are_verified_on_their_shipped_grid(solved):
-    """The UR5 studies (all four) run here on the grid their files ship, only shorter, and
-    their RK4 steps are short enough for verify's default gap tolerances (verify itself passes
-    them, the fatigue gap included, in test_verify_passes_on_a_short_result_of_every_study: not
-    repeated here)."""
+def test_the_ur5_studies_are_verified_on_their_shipped_grid():
+    """The UR5 studies run here on the grid their files ship, only shorter (:func:`short` leaves
+    their grid alone; a run stores the study it solved, tests/io), and their RK4 steps are short
+    enough for verify's default gap tolerances (verify itself passes them, the fatigue gap
+    included, in test_verify_passes_on_a_short_result_of_every_study: not repeated here)."""
     assert {name for name, _ in UR5} == {"ur5_carry.toml", "ur5_lift_swing.toml", "ur5_mpc.toml", "ur5_motors_lift.toml", "ur5_motors_paced.toml"}
     for source in UR5:
         study = _study(source)
         shipped = (study.data["task"]["intervals_per_cycle"], study.data["transcription"]["substeps"])
         assert not {"task.intervals_per_cycle", "transcription.substeps"} & set(short(study)), source
-        run = read_run(solved(source))
-        stored = Study.from_toml(run.study).data
-        assert (stored["task"]["intervals_per_cycle"], stored["transcription"]["substeps"]) == shipped
+        shortened = study.replace(short(study)).data
+        assert (shortened["task"]["intervals_per_cycle"], shortened["transcription"]["substeps"]) == shipped
         substep = study.data["task"]["cycle_duration"] / shipped[0] / shipped[1]
         assert substep <= 0.025 + 1e-12, (source, substep)  # the fatigue gap (LD = 10 1/s) needs 0.025 s
 
@@ -308,6 +310,7 @@ def _check_closed_loop(run, code, text, cycles: int) -> None:
     assert np.abs(run.qdot).max() < 10 * np.pi  # the plans' swing stays below the velocity bound
 
 
+@pytest.mark.slow
 def test_the_closed_loop_study_passes_verify_as_shipped(tmp_path, capsys):
     """studies/curl_mpc.toml's closed loop (the plant's run), on its shipped grid (10 intervals,
     8 RK4 substeps) for 3 cycles (its window's, the fewest it allows): verify passes, the task
