@@ -53,6 +53,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -519,6 +520,8 @@ struct Solver {
   DeepPtr<pairstep::PairSolver> pair;  // the pair-step recursion, when the structure fits
   bool pair_used = false;                       // the last factorisation is the pair step's
   long pair_factors = 0, block_factors = 0;     // counts (riccati_pair_stats)
+  std::thread::id owner;  // the thread whose IPOPT solve analysed it (riccati_release_thread)
+  bool released = false;  // its factor freed: its IPOPT solve has returned
 
   // A fill-reducing order inside block b (minimum degree): the block's front holds its own
   // couplings, the previous block's Schur complement (dense on the block's rows that couple with
@@ -922,6 +925,7 @@ RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int
     remember_analysis(pair_on, *solver);
   }
   solver->ikeep = IKEEP;
+  solver->owner = std::this_thread::get_id();
   int handle;
   {
     std::lock_guard<std::mutex> lock(registry_mutex);
@@ -949,7 +953,7 @@ RICCATI_EXPORT void ma27bd_(int* N, int* NZ, const int* IRN, const int* ICN, dou
   *NSTEPS = 1;
   *MAXFRT = 1;
   Solver* s = (*N >= 2 && IKEEP[0] == MAGIC) ? lookup(IKEEP[1]) : nullptr;
-  if (!s || *LIW < 2) {
+  if (!s || s->released || *LIW < 2) {
     INFO[0] = -1;
     return;
   }
@@ -970,7 +974,7 @@ RICCATI_EXPORT void ma27cd_(int* N, double* A, int* LA, int* IW, int* LIW, doubl
   (void)N; (void)A; (void)LA; (void)LIW; (void)W; (void)MAXFRT; (void)IW1; (void)NSTEPS; (void)ICNTL;
   for (int i = 0; i < 20; ++i) INFO[i] = 0;
   Solver* s = IW[0] == MAGIC ? lookup(IW[1]) : nullptr;
-  if (!s) {
+  if (!s || s->released) {
     INFO[0] = -1;
     return;
   }
@@ -992,6 +996,28 @@ RICCATI_EXPORT int riccati_max_block(int n, int nz, const int* irn, const int* j
 RICCATI_EXPORT int riccati_pair_stages(int n, int nz, const int* irn, const int* jcn) {
   pairstep::PairSolver p;
   return p.analyse(n, nz, irn, jcn) ? p.nstages : 0;
+}
+
+// Frees the factors of every solver the calling thread analysed: the caller's IPOPT solves have
+// returned (IPOPT never says when an instance is gone, and KEEP live UR5 factors hold about 10 MB
+// each). A freed solver keeps its counts and refuses to factorise or solve (INFO(1) = -1). Solvers
+// of other threads, whose solves may be under way, are left alone. Returns the number freed.
+RICCATI_EXPORT int riccati_release_thread() {
+  const std::thread::id me = std::this_thread::get_id();
+  std::lock_guard<std::mutex> lock(registry_mutex);
+  int freed = 0;
+  for (auto& s : registry) {
+    if (!s || s->released || s->owner != me) continue;
+    auto stub = std::make_unique<Solver>();
+    stub->pair_factors = s->pair_factors;
+    stub->block_factors = s->block_factors;
+    stub->ikeep = s->ikeep;
+    stub->owner = me;
+    stub->released = true;
+    s = std::move(stub);
+    ++freed;
+  }
+  return freed;
 }
 
 // Factorisations made by each method by the newest solver (the last analysis: tests, benchmarks).

@@ -293,6 +293,20 @@ def linear_solver_options(name: str) -> dict[str, Any]:
     return {"linear_solver": "ma27", "hsllib": str(library), "linear_system_scaling": "none"}
 
 
+def riccati_release() -> int:
+    """Free the stage-wise solver's factors of the IPOPT solves this thread has made (IPOPT never
+    says when one is gone; the library would keep the newest 16, about 10 MB each at the UR5's
+    size). Call it once a solve has returned; solves under way in other threads are left alone.
+    Returns the number freed (0 where the library is missing)."""
+    import ctypes
+
+    library = riccati_library()
+    if library is None:
+        return 0
+    release = getattr(ctypes.CDLL(str(library)), "riccati_release_thread", None)
+    return int(release()) if release is not None else 0
+
+
 def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity, max_block: int | None = None) -> str | None:
     """Why the stage-wise solver cannot take an NLP with these Lagrangian Hessian (n x n) and
     constraint Jacobian (m x n) patterns, or None when it can: the library's own analysis of the
@@ -576,8 +590,12 @@ class NlpSolver:
         t0 = time.perf_counter()
         solver = self._solver(max_iter, warm_start and lam_x0 is not None and lam_g0 is not None)
         self._last[int(self.options.max_iter if max_iter is None else max_iter)] = solver
-        with captured(2) as said, watch():  # Ctrl-C / SIGTERM: IPOPT stops, Interrupted is raised (no failed solve)
-            sol = solver(**args)
+        try:
+            with captured(2) as said, watch():  # Ctrl-C / SIGTERM: IPOPT stops, Interrupted is raised (no failed solve)
+                sol = solver(**args)
+        finally:
+            if self.options.linear_solver == "riccati":
+                riccati_release()
         if said:  # what CasADi and IPOPT wrote on standard error, once the solve was not interrupted
             print("\n".join(said), file=sys.stderr)
         wall = time.perf_counter() - t0

@@ -324,3 +324,88 @@ def test_the_pair_step_takes_stages_whose_rows_reach_every_control(nx, nu):
     assert a.iterations == b.iterations
     pair, block = pair_counts(lib)
     assert pair > 0 and block == 0, (pair, block)
+
+
+class Ma27:
+    """One analysed solver of the library, driven through the MA27 entry points step by step."""
+
+    def __init__(self, lib, rows, cols, n):
+        self.lib, self.n = lib, n
+        self.irn, self.jcn = (np.asarray(v, dtype=np.int32) + 1 for v in (rows, cols))
+        nz = self.irn.size
+        self.icntl, self.cntl, self.info = np.zeros(30, np.int32), np.zeros(5), np.zeros(20, np.int32)
+        self.iw, self.ikeep, self.iw1 = np.zeros(2 * nz + 3 * n + 16, np.int32), np.zeros(3 * n, np.int32), np.zeros(2 * n, np.int32)
+        self.nsteps, self.maxfrt = ctypes.c_int(0), ctypes.c_int(0)
+        lib.ma27id_(self._p(self.icntl), self._p(self.cntl))
+        lib.ma27ad_(self._i(n), self._i(nz), self._p(self.irn), self._p(self.jcn), self._p(self.iw), self._i(self.iw.size),
+                    self._p(self.ikeep), self._p(self.iw1), ctypes.byref(self.nsteps), ctypes.byref(ctypes.c_int(0)),
+                    self._p(self.icntl), self._p(self.cntl), self._p(self.info), ctypes.byref(ctypes.c_double(0)))
+        assert self.info[0] == 0
+
+    @staticmethod
+    def _i(v):
+        return ctypes.byref(ctypes.c_int(v))
+
+    @staticmethod
+    def _p(a):
+        return a.ctypes.data_as(ctypes.c_void_p)
+
+    def factor(self, values) -> int:
+        """INFO(1) of a factorisation of ``values`` (the triplets' values)."""
+        a = np.asarray(values, dtype=float).copy()
+        self.lib.ma27bd_(self._i(self.n), self._i(self.irn.size), self._p(self.irn), self._p(self.jcn), self._p(a), self._i(a.size),
+                         self._p(self.iw), self._i(self.iw.size), self._p(self.ikeep), ctypes.byref(self.nsteps),
+                         ctypes.byref(self.maxfrt), self._p(self.iw1), self._p(self.icntl), self._p(self.cntl), self._p(self.info))
+        return int(self.info[0])
+
+
+def test_release_frees_the_factors_of_this_threads_solves_only():
+    """``riccati_release_thread`` (called by NlpSolver once an IPOPT solve has returned): the
+    calling thread's solvers refuse to factorise afterwards (INFO(1) = -1, never a stale step) and
+    keep their counts; a solver another thread is still using factorises as before."""
+    import threading
+
+    lib = ctypes.CDLL(str(riccati_library()))
+    K = random_kkt(np.random.default_rng(7))
+    rows, cols = np.nonzero(np.tril(K) + np.eye(len(K)))
+    values = K[rows, cols]
+    analysed, release_done, results = threading.Event(), threading.Event(), {}
+
+    def other_thread():
+        solver = Ma27(lib, rows, cols, len(K))
+        results["before"] = solver.factor(values)
+        analysed.set()
+        release_done.wait(timeout=60)
+        results["after"] = solver.factor(values)
+
+    worker = threading.Thread(target=other_thread)
+    worker.start()
+    assert analysed.wait(timeout=60)
+    mine = Ma27(lib, rows, cols, len(K))
+    assert mine.factor(values) == 0
+    counts = pair_counts(lib)
+    assert sum(counts) >= 1
+    assert lib.riccati_release_thread() >= 1
+    assert lib.riccati_release_thread() == 0  # nothing of this thread's is left to free
+    assert pair_counts(lib) == counts          # the newest solver is mine: its counts are kept
+    assert mine.factor(values) == -1
+    release_done.set()
+    worker.join(timeout=60)
+    assert results == {"before": 0, "after": 0}
+
+
+def test_a_solve_on_riccati_leaves_no_factor_behind():
+    """NlpSolver frees the stage-wise solver's factors once its IPOPT solve has returned (the
+    library would otherwise keep 16 solves' factors alive), and solves again to the same optimum."""
+    from fatigue_pin.ocp.solver import riccati_release
+
+    opti = _chain(30)
+    riccati_release()  # whatever earlier tests of this thread left
+    solver = NlpSolver(opti, SolverOptions(linear_solver="riccati", compile=False), name="riccati_release")
+    assert solver.options.linear_solver == "riccati"
+    first = solver.solve(np.zeros(0), np.zeros(opti.nx))
+    assert riccati_release() == 0  # the solve freed its own
+    assert pair_counts(ctypes.CDLL(str(riccati_library())))[0] >= first.iterations  # and they were the library's
+    second = solver.solve(np.zeros(0), np.zeros(opti.nx))
+    assert first.success and second.success and second.iterations == first.iterations
+    np.testing.assert_allclose(second.x, first.x, rtol=0, atol=1e-12)
