@@ -58,7 +58,7 @@ def pair_counts() -> tuple[int, int] | None:
     """(pair-step, block LDL^T) factorisations of the stage-wise library's last analysed solver."""
     import ctypes
 
-    from fatigue_pin.ocp.solver import riccati_library
+    from fatigue_pin.ocp.riccati import riccati_library
 
     path = riccati_library()
     if path is None:
@@ -138,7 +138,7 @@ def timed(ocp, call, solver: str = "") -> dict:
 
 def blocks(ocp) -> str:
     """The stage-wise solver's blocks on this NLP (largest, count)."""
-    from fatigue_pin.ocp.solver import riccati_blocks
+    from fatigue_pin.ocp.riccati import riccati_blocks
 
     solver = next(iter(ocp.nlp._solvers.values()))
     biggest, count = riccati_blocks(solver.get_function("nlp_hess_l").sparsity_out(0), solver.get_function("nlp_jac_g").sparsity_out(1))

@@ -17,7 +17,8 @@ from conftest import small_curl
 from fatigue_pin.cli.main import main
 from fatigue_pin.io.study import Study, run_study, to_toml
 from fatigue_pin.ocp.ipopt_defaults import DEPARTURES, EVERY_SOLVE, WARM_STARTED, departures_in_force, departures_line
-from fatigue_pin.ocp.solver import NLPSOL_OPTIONS, WARM_START_OPTIONS, SolverOptions, linear_solver_options
+from fatigue_pin.ocp.riccati import linear_solver_options
+from fatigue_pin.ocp.solver import NLPSOL_OPTIONS, WARM_START_OPTIONS, SolverOptions
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "ocp.md"
 

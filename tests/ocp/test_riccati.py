@@ -10,7 +10,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from fatigue_pin.ocp.solver import NlpSolver, SolverOptions, linear_solver_options, riccati_library, riccati_structure
+from fatigue_pin.ocp.riccati import linear_solver_options, riccati_library, riccati_structure
+from fatigue_pin.ocp.solver import NlpSolver, SolverOptions
 
 # `pip install .` builds the library; a source tree without it (a developer's) skips, CI (CI=true,
 # as .ci/run sets) runs and fails without it
@@ -230,9 +231,9 @@ def test_a_singular_matrix_is_reported():
 
 
 def test_a_cost_coupling_all_stages_falls_back_to_mumps(capsys, monkeypatch):
-    import fatigue_pin.ocp.solver as solver_module
+    import fatigue_pin.ocp.riccati as riccati_module
 
-    monkeypatch.setattr(solver_module, "RICCATI_MAX_BLOCK", 30)  # a stage here is 6 rows; all controls, 40
+    monkeypatch.setattr(riccati_module, "RICCATI_MAX_BLOCK", 30)  # a stage here is 6 rows; all controls, 40
     N = 40
     opti = ca.Opti()
     X = opti.variable(2, N + 1)
@@ -276,10 +277,10 @@ def test_auto_takes_the_stage_wise_solver_where_its_stages_are_small(capsys, cou
     """``auto`` (the default) resolves to ``riccati`` on stages of a few rows, and to MUMPS, without
     a message, where a cost merges the stages into one block above RICCATI_AUTO_MAX_BLOCK; both
     reach the optimum that MUMPS reaches."""
-    import fatigue_pin.ocp.solver as solver_module
+    from fatigue_pin.ocp.riccati import RICCATI_AUTO_MAX_BLOCK
 
     assert SolverOptions().linear_solver == "auto"
-    N = 30 if not coupled else solver_module.RICCATI_AUTO_MAX_BLOCK  # all controls in one block: > the limit
+    N = 30 if not coupled else RICCATI_AUTO_MAX_BLOCK  # all controls in one block: > the limit
     opti = _chain(N, coupled)
     solver = NlpSolver(opti, SolverOptions(compile=False), name=f"auto_{chosen}")
     assert capsys.readouterr().err == ""
@@ -397,7 +398,7 @@ def test_release_frees_the_factors_of_this_threads_solves_only():
 def test_a_solve_on_riccati_leaves_no_factor_behind():
     """NlpSolver frees the stage-wise solver's factors once its IPOPT solve has returned (the
     library would otherwise keep 16 solves' factors alive), and solves again to the same optimum."""
-    from fatigue_pin.ocp.solver import riccati_release
+    from fatigue_pin.ocp.riccati import riccati_release
 
     opti = _chain(30)
     riccati_release()  # whatever earlier tests of this thread left
