@@ -77,28 +77,54 @@ def test_ipopt_iterates_are_mumps_iterates(states_first):
     np.testing.assert_array_equal(np.asarray(a["regularization_size"]) > 0, np.asarray(b["regularization_size"]) > 0)
 
 
+class Ma27:
+    """One analysed solver of the library, driven through the MA27 entry points step by step."""
+
+    def __init__(self, lib, rows, cols, n):
+        self.lib, self.n = lib, n
+        self.irn, self.jcn = (np.asarray(v, dtype=np.int32) + 1 for v in (rows, cols))
+        nz = self.irn.size
+        self.icntl, self.cntl, self.info = np.zeros(30, np.int32), np.zeros(5), np.zeros(20, np.int32)
+        self.iw, self.ikeep, self.iw1 = np.zeros(2 * nz + 3 * n + 16, np.int32), np.zeros(3 * n, np.int32), np.zeros(2 * n, np.int32)
+        self.nsteps, self.maxfrt = ctypes.c_int(0), ctypes.c_int(0)
+        lib.ma27id_(self._p(self.icntl), self._p(self.cntl))
+        lib.ma27ad_(self._i(n), self._i(nz), self._p(self.irn), self._p(self.jcn), self._p(self.iw), self._i(self.iw.size),
+                    self._p(self.ikeep), self._p(self.iw1), ctypes.byref(self.nsteps), ctypes.byref(ctypes.c_int(0)),
+                    self._p(self.icntl), self._p(self.cntl), self._p(self.info), ctypes.byref(ctypes.c_double(0)))
+        assert self.info[0] == 0
+
+    @staticmethod
+    def _i(v):
+        return ctypes.byref(ctypes.c_int(v))
+
+    @staticmethod
+    def _p(a):
+        return a.ctypes.data_as(ctypes.c_void_p)
+
+    def factor(self, values) -> int:
+        """INFO(1) of a factorisation of ``values`` (the triplets' values); INFO(15), the
+        negative eigenvalues, stays in ``self.info[14]``."""
+        a = self.a = np.asarray(values, dtype=float).copy()
+        self.lib.ma27bd_(self._i(self.n), self._i(self.irn.size), self._p(self.irn), self._p(self.jcn), self._p(a), self._i(a.size),
+                         self._p(self.iw), self._i(self.iw.size), self._p(self.ikeep), ctypes.byref(self.nsteps),
+                         ctypes.byref(self.maxfrt), self._p(self.iw1), self._p(self.icntl), self._p(self.cntl), self._p(self.info))
+        return int(self.info[0])
+
+    def solve(self, rhs) -> np.ndarray:
+        """The solution of the last factorised system for ``rhs``."""
+        x, w = np.array(rhs, dtype=float), np.zeros(16)
+        self.lib.ma27cd_(self._i(self.n), self._p(self.a), self._i(self.a.size), self._p(self.iw), self._i(self.iw.size), self._p(w),
+                         ctypes.byref(self.maxfrt), self._p(x), self._p(self.iw1), ctypes.byref(self.nsteps), self._p(self.icntl),
+                         self._p(self.info))
+        return x
+
+
 def ma27(lib, rows, cols, values, n, rhs):
     """Analysis, factorisation and one solve through the MA27 entry points; (INFO(1), INFO(15), x)."""
-    i32 = lambda v: ctypes.byref(ctypes.c_int(v))  # noqa: E731
-    ptr = lambda a: a.ctypes.data_as(ctypes.c_void_p)  # noqa: E731
-    irn, jcn = (np.asarray(v, dtype=np.int32) + 1 for v in (rows, cols))
-    a = np.asarray(values, dtype=float).copy()
-    nz = irn.size
-    icntl, cntl, info = np.zeros(30, np.int32), np.zeros(5), np.zeros(20, np.int32)
-    iw, ikeep, iw1 = np.zeros(2 * nz + 3 * n + 16, np.int32), np.zeros(3 * n, np.int32), np.zeros(2 * n, np.int32)
-    nsteps, iflag, maxfrt, ops = ctypes.c_int(0), ctypes.c_int(0), ctypes.c_int(0), ctypes.c_double(0)
-    lib.ma27id_(ptr(icntl), ptr(cntl))
-    lib.ma27ad_(i32(n), i32(nz), ptr(irn), ptr(jcn), ptr(iw), i32(iw.size), ptr(ikeep), ptr(iw1), ctypes.byref(nsteps),
-                ctypes.byref(iflag), ptr(icntl), ptr(cntl), ptr(info), ctypes.byref(ops))
-    assert info[0] == 0
-    lib.ma27bd_(i32(n), i32(nz), ptr(irn), ptr(jcn), ptr(a), i32(a.size), ptr(iw), i32(iw.size), ptr(ikeep),
-                ctypes.byref(nsteps), ctypes.byref(maxfrt), ptr(iw1), ptr(icntl), ptr(cntl), ptr(info))
-    flag, negative = int(info[0]), int(info[14])
-    x = np.array(rhs, dtype=float)
-    if flag == 0:
-        w = np.zeros(16)
-        lib.ma27cd_(i32(n), ptr(a), i32(a.size), ptr(iw), i32(iw.size), ptr(w), ctypes.byref(maxfrt), ptr(x), ptr(iw1),
-                    ctypes.byref(nsteps), ptr(icntl), ptr(info))
+    solver = Ma27(lib, rows, cols, n)
+    flag = solver.factor(values)
+    negative = int(solver.info[14])
+    x = solver.solve(rhs) if flag == 0 else np.array(rhs, dtype=float)
     return flag, negative, x
 
 
@@ -327,39 +353,6 @@ def test_the_pair_step_takes_stages_whose_rows_reach_every_control(nx, nu):
     assert pair > 0 and block == 0, (pair, block)
 
 
-class Ma27:
-    """One analysed solver of the library, driven through the MA27 entry points step by step."""
-
-    def __init__(self, lib, rows, cols, n):
-        self.lib, self.n = lib, n
-        self.irn, self.jcn = (np.asarray(v, dtype=np.int32) + 1 for v in (rows, cols))
-        nz = self.irn.size
-        self.icntl, self.cntl, self.info = np.zeros(30, np.int32), np.zeros(5), np.zeros(20, np.int32)
-        self.iw, self.ikeep, self.iw1 = np.zeros(2 * nz + 3 * n + 16, np.int32), np.zeros(3 * n, np.int32), np.zeros(2 * n, np.int32)
-        self.nsteps, self.maxfrt = ctypes.c_int(0), ctypes.c_int(0)
-        lib.ma27id_(self._p(self.icntl), self._p(self.cntl))
-        lib.ma27ad_(self._i(n), self._i(nz), self._p(self.irn), self._p(self.jcn), self._p(self.iw), self._i(self.iw.size),
-                    self._p(self.ikeep), self._p(self.iw1), ctypes.byref(self.nsteps), ctypes.byref(ctypes.c_int(0)),
-                    self._p(self.icntl), self._p(self.cntl), self._p(self.info), ctypes.byref(ctypes.c_double(0)))
-        assert self.info[0] == 0
-
-    @staticmethod
-    def _i(v):
-        return ctypes.byref(ctypes.c_int(v))
-
-    @staticmethod
-    def _p(a):
-        return a.ctypes.data_as(ctypes.c_void_p)
-
-    def factor(self, values) -> int:
-        """INFO(1) of a factorisation of ``values`` (the triplets' values)."""
-        a = np.asarray(values, dtype=float).copy()
-        self.lib.ma27bd_(self._i(self.n), self._i(self.irn.size), self._p(self.irn), self._p(self.jcn), self._p(a), self._i(a.size),
-                         self._p(self.iw), self._i(self.iw.size), self._p(self.ikeep), ctypes.byref(self.nsteps),
-                         ctypes.byref(self.maxfrt), self._p(self.iw1), self._p(self.icntl), self._p(self.cntl), self._p(self.info))
-        return int(self.info[0])
-
-
 def test_release_frees_the_factors_of_this_threads_solves_only():
     """``riccati_release_thread`` (called by NlpSolver once an IPOPT solve has returned): the
     calling thread's solvers refuse to factorise afterwards (INFO(1) = -1, never a stale step) and
@@ -398,14 +391,15 @@ def test_release_frees_the_factors_of_this_threads_solves_only():
 def test_a_solve_on_riccati_leaves_no_factor_behind():
     """NlpSolver frees the stage-wise solver's factors once its IPOPT solve has returned (the
     library would otherwise keep 16 solves' factors alive), and solves again to the same optimum."""
-    from fatigue_pin.ocp.riccati import riccati_release
+    from fatigue_pin.ocp.riccati import riccati_releaser
 
     opti = _chain(30)
-    riccati_release()  # whatever earlier tests of this thread left
+    release = riccati_releaser()
+    release()  # whatever earlier tests of this thread left
     solver = NlpSolver(opti, SolverOptions(linear_solver="riccati", compile=False), name="riccati_release")
     assert solver.options.linear_solver == "riccati"
     first = solver.solve(np.zeros(0), np.zeros(opti.nx))
-    assert riccati_release() == 0  # the solve freed its own
+    assert release() == 0  # the solve freed its own
     assert pair_counts(ctypes.CDLL(str(riccati_library())))[0] >= first.iterations  # and they were the library's
     second = solver.solve(np.zeros(0), np.zeros(opti.nx))
     assert first.success and second.success and second.iterations == first.iterations
