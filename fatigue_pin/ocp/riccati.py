@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
@@ -49,18 +49,21 @@ def linear_solver_options(name: str) -> dict[str, Any]:
     return {"linear_solver": "ma27", "hsllib": str(library), "linear_system_scaling": "none"}
 
 
-def riccati_release() -> int:
-    """Free the stage-wise solver's factors of the IPOPT solves this thread has made (IPOPT never
-    says when one is gone; the library would keep the newest 16, about 10 MB each at the UR5's
-    size). Call it once a solve has returned; solves under way in other threads are left alone.
-    Returns the number freed (0 where the library is missing)."""
+def riccati_releaser() -> Callable[[], int] | None:
+    """The library's ``riccati_release_thread``, loaded once (None where the library is missing):
+    called once an IPOPT solve has returned, it frees the stage-wise solver's factors of the solves
+    this thread has made (IPOPT never says when one is gone; the library would keep the newest 16,
+    about 10 MB each at the UR5's size); solves under way in other threads are left alone. It
+    returns the number freed."""
     import ctypes
 
     library = riccati_library()
     if library is None:
-        return 0
-    release = getattr(ctypes.CDLL(str(library)), "riccati_release_thread", None)
-    return int(release()) if release is not None else 0
+        return None
+    release = getattr(ctypes.CDLL(str(library)), "riccati_release_thread", None)  # None: a build before it
+    if release is not None:
+        release.restype = ctypes.c_int
+    return release
 
 
 def riccati_structure(hessian: ca.Sparsity, jacobian: ca.Sparsity, max_block: int | None = None) -> str | None:

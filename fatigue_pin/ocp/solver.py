@@ -35,7 +35,7 @@ from fatigue_pin.core.signals import watch
 from fatigue_pin.core.streams import captured
 from fatigue_pin.ocp.compiled import BuildOptions, cache_folder, cached_build, compile_shared, host_key, verify_entry
 from fatigue_pin.ocp.ipopt_process import check_ipopt_options, limit_blas_threads
-from fatigue_pin.ocp.riccati import RICCATI_AUTO_MAX_BLOCK, linear_solver_options, riccati_library, riccati_release, riccati_structure
+from fatigue_pin.ocp.riccati import RICCATI_AUTO_MAX_BLOCK, linear_solver_options, riccati_library, riccati_releaser, riccati_structure
 
 #: How a compiled NLP is built (see :class:`SolverOptions`).
 COMPILE_MODES = ("library", "nlp")
@@ -404,6 +404,8 @@ class NlpSolver:
         self._solver()
         if options.linear_solver in ("riccati", "auto"):
             self._check_riccati()
+        #: frees the stage-wise solver's factors once a solve has returned (None on other solvers)
+        self._release_factors = riccati_releaser() if self.options.linear_solver == "riccati" else None
         self.build_time_s = time.perf_counter() - t0
 
     def _check_riccati(self) -> None:
@@ -506,8 +508,8 @@ class NlpSolver:
             with captured(2) as said, watch():  # Ctrl-C / SIGTERM: IPOPT stops, Interrupted is raised (no failed solve)
                 sol = solver(**args)
         finally:
-            if self.options.linear_solver == "riccati":
-                riccati_release()
+            if self._release_factors is not None:
+                self._release_factors()
         if said:  # what CasADi and IPOPT wrote on standard error, once the solve was not interrupted
             print("\n".join(said), file=sys.stderr)
         wall = time.perf_counter() - t0
