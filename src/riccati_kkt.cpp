@@ -45,6 +45,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -853,13 +854,20 @@ Solver* lookup(int handle) {
 // closed loop's re-plans, a sliding run's windows and a sweep's runs hand over the same pattern
 // each time: a pattern met before (the same n, triplets and pair-step switch, compared in full)
 // gets a copy of its analysed solver, never factorised, instead of a new analysis.
+// A closed loop that re-plans K times per cycle meets K patterns in turn (the task's targets fall
+// on other nodes of each window: 10 on arm26 re-planning every 0.1 s), and a least-recently-used
+// cache smaller than that cycle never hits. So the cache holds up to ANALYSES patterns and
+// ANALYSIS_ENTRIES KKT entries in all (an analysed solver takes about 63 bytes per entry, measured
+// on the arm26 window: 2.1 MB for 32,684 entries; so about 66 MB at most), and always the newest.
 struct Analysis {
   bool pair_on = false;
   std::unique_ptr<Solver> solver;  // analysed, never factorised; its triplets are the pattern
 };
-constexpr size_t ANALYSES = 4;  // patterns kept, the most recently used last
+constexpr size_t ANALYSES = 64;                       // patterns kept, the most recently used last
+constexpr size_t ANALYSIS_ENTRIES = size_t{1} << 20;  // their KKT entries, in all
 std::mutex analyses_mutex;
 std::vector<Analysis> analyses;
+std::atomic<long> analyses_made{0};  // fresh analyses (patterns not found), riccati_analyses_made
 
 bool same_pattern(const Analysis& a, int n, int nz, const int* irn, const int* icn, bool pair_on) {
   const Solver& s = *a.solver;
@@ -884,8 +892,13 @@ void remember_analysis(bool pair_on, const Solver& s) {
   a.pair_on = pair_on;
   a.solver = std::make_unique<Solver>(s);
   std::lock_guard<std::mutex> lock(analyses_mutex);
-  if (analyses.size() >= ANALYSES) analyses.erase(analyses.begin());
   analyses.push_back(std::move(a));
+  size_t entries = 0;
+  for (const Analysis& k : analyses) entries += static_cast<size_t>(k.solver->nz);
+  while (analyses.size() > 1 && (analyses.size() > ANALYSES || entries > ANALYSIS_ENTRIES)) {
+    entries -= static_cast<size_t>(analyses.front().solver->nz);
+    analyses.erase(analyses.begin());
+  }
 }
 
 }  // namespace
@@ -923,6 +936,7 @@ RICCATI_EXPORT void ma27ad_(int* N, int* NZ, const int* IRN, const int* ICN, int
       if (!solver->pair->analyse(*N, *NZ, IRN, ICN)) solver->pair.reset();
     }
     remember_analysis(pair_on, *solver);
+    ++analyses_made;
   }
   solver->ikeep = IKEEP;
   solver->owner = std::this_thread::get_id();
@@ -1019,6 +1033,9 @@ RICCATI_EXPORT int riccati_release_thread() {
   }
   return freed;
 }
+
+// Fresh analyses made in this process (a pattern not found among those kept; tests, benchmarks).
+RICCATI_EXPORT long riccati_analyses_made() { return analyses_made.load(); }
 
 // Factorisations made by each method by the newest solver (the last analysis: tests, benchmarks).
 RICCATI_EXPORT void riccati_pair_counts(long* pair, long* block) {

@@ -234,6 +234,33 @@ def test_analyses_kept_by_pattern_solve_each_matrix():
         np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
 
 
+def test_a_cycle_of_ten_patterns_is_analysed_once(patterns=10):
+    """A closed loop re-planning every 0.1 s on arm26 hands IPOPT ten patterns in turn (the targets
+    fall on other nodes of each window): the library keeps them all, so the second cycle's solves
+    make no analysis of their own (with four patterns kept, as before, every solve analysed)."""
+    lib = ctypes.CDLL(str(riccati_library()))
+    lib.riccati_analyses_made.restype = ctypes.c_long
+    rng = np.random.default_rng(11)
+    K0 = random_kkt(np.random.default_rng(5))
+    nw = len(K0) - 12 * 4
+    K0[nw:, nw:] = 0.0
+    low = np.argwhere(np.tril(K0, -1)[:nw, :nw] != 0.0)[:patterns]  # one entry dropped per pattern
+    made = []
+    for cycle in range(2):
+        before = lib.riccati_analyses_made()
+        for i, j in low:
+            K = K0 + np.diag(rng.uniform(0.5, 1.5, len(K0)) * (np.arange(len(K0)) < nw))
+            K[i, j] = K[j, i] = 0.0
+            rows, cols = np.nonzero(np.tril(K) + np.eye(len(K)))
+            b = rng.normal(size=len(K))
+            flag, negative, x = ma27(lib, rows, cols, K[rows, cols], len(K), b)
+            assert flag == 0
+            assert negative == int(np.sum(np.linalg.eigvalsh(K) < 0))
+            np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
+        made.append(lib.riccati_analyses_made() - before)
+    assert made[0] <= patterns and made[1] == 0
+
+
 def test_pair_step_off_by_environment(monkeypatch):
     lib = ctypes.CDLL(str(riccati_library()))
     K = random_kkt(np.random.default_rng(3))
