@@ -63,7 +63,6 @@ def _modules() -> list[tuple[str, Path]]:
     return out
 
 
-@pytest.mark.xdist_group("site")  # one worker builds the site
 def test_every_public_name_of_every_module_has_a_section(site):
     missing = []
     for package, path in _modules():
@@ -76,7 +75,6 @@ def test_every_public_name_of_every_module_has_a_section(site):
     assert missing == [], f"no section in the API reference for: {missing}"
 
 
-@pytest.mark.xdist_group("site")  # one worker builds the site
 def test_every_name_of_the_public_api_has_a_section_and_a_line_in_api_md(site):
     from fatigue_pin import _API
 
@@ -87,7 +85,6 @@ def test_every_name_of_the_public_api_has_a_section_and_a_line_in_api_md(site):
         assert f"][{module}.{name}]" in api, f"docs/api.md does not link {name} to its section"
 
 
-@pytest.mark.xdist_group("site")  # one worker builds the site
 def test_equations_render_and_figures_appear(site):
     for page in ("fatigue", "ocp"):
         html = (site / page / "index.html").read_text()

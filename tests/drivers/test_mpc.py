@@ -68,7 +68,6 @@ def tired():
     return study, runs
 
 
-@pytest.mark.xdist_group("tired")  # one worker builds the fixture
 def test_open_loop_over_plans_and_the_tired_plant_misses_its_targets(tired):
     study, runs = tired
     nominal_loop, nominal = runs["nominal"]
@@ -91,7 +90,6 @@ def test_open_loop_over_plans_and_the_tired_plant_misses_its_targets(tired):
     assert (np.array(state.x)[-1, mf_rows] - np.array(state.history.m)[-1][[r - L.nq - L.nv for r in mf_rows]]).max() > 0.1
 
 
-@pytest.mark.xdist_group("tired")  # one worker builds the fixture
 def test_mhe_recovers_F_and_achieves_at_least_as_many_repetitions(tired):
     study, runs = tired
     loop, state = runs["mhe"]

@@ -150,18 +150,7 @@ def solved(tmp_path_factory):
     return solve
 
 
-#: Studies whose short result other tests of this module read too: their tests share one worker
-#: (``xdist_group``, with ``--dist loadgroup``), so the module fixture solves each once.
-SHARED = {"ur5_carry.toml": pytest.mark.xdist_group("ur5_carry"),
-          "curl_physiological.toml": pytest.mark.xdist_group("curl_physiological")}
-
-
-def _marks(source: tuple[str, int | None]) -> list:
-    name, job = source
-    return ([pytest.mark.slow] if name in SLOW else []) + ([SHARED[name]] if name in SHARED and job is None else [])
-
-
-@pytest.mark.parametrize("source", [pytest.param(s, marks=_marks(s)) for s in SOURCES],
+@pytest.mark.parametrize("source", [pytest.param(s, marks=pytest.mark.slow) if s[0] in SLOW else s for s in SOURCES],
                          ids=[n if j is None else f"{n}[job {j}]" for n, j in SOURCES])
 def test_verify_passes_on_a_short_result_of_every_study(source, solved, capsys):
     out = solved(source)
@@ -212,7 +201,6 @@ def _with_study(run, study: Study):
     return dataclasses.replace(run, study=study.to_toml())
 
 
-@pytest.mark.xdist_group("ur5_carry")
 def test_frame_target_study_with_a_payload_passes(solved):
     run = read_run(solved(CARRY))
     r = verify_run(run)
@@ -228,7 +216,6 @@ def test_frame_target_study_with_a_payload_passes(solved):
     assert not r2.passed and r2.gap_qdot > 100 * r.gap_qdot, r2.table()
 
 
-@pytest.mark.xdist_group("ur5_carry")
 def test_frame_target_study_fails_when_one_node_moves(solved, tmp_path, capsys):
     run = read_run(solved(CARRY))
     n = run.q.shape[0] - 1
@@ -254,7 +241,6 @@ def test_frame_target_study_fails_when_one_node_moves(solved, tmp_path, capsys):
     assert r.check("task frame targets").value == pytest.approx(expected, rel=1e-9) and expected > 0.03
 
 
-@pytest.mark.xdist_group("ur5_carry")
 def test_planes_and_orientations_are_checked(solved):
     """A plane above the tool's lowest node and an orientation target 0.1 rad off the tool's
     rotation at phase 0.5, added to the stored study: verify reports their violations, computed
@@ -288,7 +274,6 @@ def test_planes_and_orientations_are_checked(solved):
 # -- the physiological curl: a payload on arm26 -------------------------------------------------------
 
 
-@pytest.mark.xdist_group("curl_physiological")
 def test_physiological_payload_curl_passes(solved):
     run = read_run(solved(("curl_physiological.toml", None)))
     r = verify_run(run)
