@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from scipy.integrate import solve_ivp
 import pytest
@@ -12,6 +14,29 @@ from fatigue_pin.drivers.full import OcpBuilder
 from fatigue_pin.drivers.synthetic import synthetic_run
 from fatigue_pin.robot.model import load_model
 from fatigue_pin.paper.curl import curl_study
+
+
+def built_once(tmp_path_factory, name: str, build) -> Path:
+    """``build(path)`` run once per test session, however many xdist workers ask: the first to ask
+    builds ``path`` in the folder all workers' temporary folders share, under a lock; the others
+    wait on the lock (an event, not a delay) and reuse what it built. For results several tests
+    read (a solved study, the documentation site) that cost tens of seconds to build. Returns
+    ``path``; a build that raised is tried again by the next worker to ask."""
+    import fcntl
+    import os
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # pytest-of-USER/pytest-N: every worker's basetemp is a folder of it
+    folder = root / "built_once"
+    folder.mkdir(exist_ok=True)
+    path, done = folder / name, folder / f"{name}.done"
+    with open(folder / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            build(path)
+            done.touch()
+    return path
 
 
 def small_curl(horizon: str = "full", cost: str = "fatigue-torque", preset: str = "paper", S: float = 10.0, **kwargs):

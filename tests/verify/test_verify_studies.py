@@ -135,17 +135,17 @@ def _study(source: tuple[str, int | None]) -> Study:
 
 @pytest.fixture(scope="module")
 def solved(tmp_path_factory):
-    """``solved(source)``: the result file of the short version of a study, solved once per module."""
-    folder = tmp_path_factory.mktemp("studies")
-    cache: dict[tuple[str, int | None], Path] = {}
+    """``solved(source)``: the result file of the short version of a study, solved once for all
+    workers (:func:`conftest.built_once`: several tests read the UR5 carry's and the physiological
+    curl's, about 30 s and 15 s to solve)."""
+    from conftest import built_once
 
     def solve(source: tuple[str, int | None]) -> Path:
-        if source not in cache:
+        def build(out: Path) -> None:
             study = _study(source)
-            out = folder / f"{Path(source[0]).stem}_{source[1]}.h5"
             run_study(study.replace(short(study, GRID.get(source[0]))), out)
-            cache[source] = out
-        return cache[source]
+
+        return built_once(tmp_path_factory, f"short_{Path(source[0]).stem}_{source[1]}.h5", build)
 
     return solve
 
