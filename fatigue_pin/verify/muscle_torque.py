@@ -52,7 +52,12 @@ class NumericMuscles:
         self.polynomials = None if polynomials is None else tuple(polynomials)
         frames = {p.frame for m in muscles.muscles for p in m.points} | {w.frame for w in muscles.wraps}
         self._frame_ids = {f: model.getFrameId(f) for f in frames}
-        self._wraps = {w.name: w for w in muscles.wraps}
+        # the constant geometry, once: each muscle's points (frame, location) and, per wrap it
+        # uses, (frame, the cylinder's orientation and centre on its link, radius, turn)
+        self._points = [[(p.frame, np.asarray(p.location, dtype=float)) for p in m.points] for m in muscles.muscles]
+        by_name = {w.name: w for w in muscles.wraps}
+        self._uses = [[(by_name[u.name].frame, by_name[u.name].matrix(), np.asarray(by_name[u.name].translation, dtype=float),
+                        by_name[u.name].radius, u.turn) for u in m.wraps] for m in muscles.muscles]
 
     def lengths(self, q: np.ndarray) -> np.ndarray:
         """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,): the run's
@@ -82,19 +87,17 @@ class NumericMuscles:
         pin, model, data = self.pin, self.model, self.data
         pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
         placed = {f: (data.oMf[i].rotation.copy(), data.oMf[i].translation.copy()) for f, i in self._frame_ids.items()}
-        out = np.zeros(len(self.muscles.muscles))
-        for i, m in enumerate(self.muscles.muscles):
-            points = [placed[p.frame][0] @ np.asarray(p.location, dtype=float) + placed[p.frame][1] for p in m.points]
+        out = np.zeros(len(self._points))
+        for i, (muscle_points, uses) in enumerate(zip(self._points, self._uses)):
+            points = [placed[f][0] @ location + placed[f][1] for f, location in muscle_points]
             total = 0.0
             for a, b in zip(points[:-1], points[1:]):
                 segment = float(np.linalg.norm(b - a))
-                for use in m.wraps:  # a segment goes round at most one cylinder: the longest path
-                    w = self._wraps[use.name]
-                    R, p = placed[w.frame]
-                    Rw, c = w.matrix(), np.asarray(w.translation, dtype=float)
+                for k, (frame, Rw, c, radius, turn) in enumerate(uses):  # at most one cylinder per segment: the longest path
+                    R, p = placed[frame]
                     local = [Rw.T @ (R.T @ (x - p) - c) for x in (a, b)]
-                    length = float(wrapped_length(local[0], local[1], w.radius, use.turn))
-                    segment = length if use is m.wraps[0] else max(segment, length)
+                    length = float(wrapped_length(local[0], local[1], radius, turn))
+                    segment = length if k == 0 else max(segment, length)
                 total += segment
             out[i] = total
         return out
