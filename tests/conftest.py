@@ -24,6 +24,7 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
     ``path``; a build that raised is tried again by the next worker to ask."""
     import fcntl
     import os
+    import shutil
 
     root = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):
@@ -34,6 +35,10 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
     with open(folder / f"{name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not done.exists():
+            if path.is_dir() and not path.is_symlink():  # what a build that raised left
+                shutil.rmtree(path)
+            elif path.exists():
+                path.unlink()
             build(path)
             done.touch()
     return path

@@ -138,8 +138,15 @@ def folder(tmp_path_factory) -> Path:
     """A folder with ``studies/`` and the files the pages take as given: ``results.h5`` with the
     runs ``full/fatigue-torque_S10`` and ``sliding/fatigue-torque_S10`` (small curls), and the
     forward studies' file ``results/forward/forward_studies.h5`` of ``fatigue-pin forward
-    --out results/forward`` (README.md), on a short grid (6 s, study 2 at S = 10 only)."""
-    tmp = tmp_path_factory.mktemp("docs")
+    --out results/forward`` (README.md), on a short grid (6 s, study 2 at S = 10 only). Built once
+    for all workers (:func:`conftest.built_once`); the tests read it or work in a copy."""
+    from conftest import built_once
+
+    return built_once(tmp_path_factory, "docs", _prepare_folder)
+
+
+def _prepare_folder(tmp: Path) -> None:
+    tmp.mkdir()
     (tmp / "studies").symlink_to(ROOT / "studies")
     for kind in ("full", "sliding"):
         r = _cli(["run", f"studies/curl_{kind}_fatigue-torque_paper.toml", "--out", "results.h5", "--name", f"{kind}/fatigue-torque_S10",
@@ -157,7 +164,6 @@ def folder(tmp_path_factory) -> Path:
     base = Study.from_file(ROOT / "studies" / "curl_full_fatigue-torque_paper.toml").replace({**SMALL_KEYS, "horizon.cycles": 1})
     (tmp / "small_base.toml").write_text(base.to_toml())
     (tmp / "small_sweep.toml").write_text('base = "small_base.toml"\n[grid]\n"fatigue.S" = [0.0, 10.0]\n')
-    return tmp
 
 
 def _python_source(page: str, index: int, block: str) -> str:
@@ -174,11 +180,15 @@ PY_CASES = [(p, k, t) for p, kind, k, t in SNIPPETS if kind == "python"]
 
 
 @pytest.mark.parametrize("page, index, block", PY_CASES, ids=[f"{p}-{k}" for p, k, _ in PY_CASES])
-def test_python_block_runs(page, index, block, folder):
+def test_python_block_runs(page, index, block, folder, tmp_path):
+    import shutil
+
     if (page, block.splitlines()[0]) in NOT_RUN:
         pytest.skip(NOT_RUN[(page, block.splitlines()[0])])
     source = _python_source(page, index, block)
-    r = subprocess.run([sys.executable, "-c", source], cwd=folder, env=_env(), capture_output=True, text=True, timeout=300)
+    work = tmp_path / "work"  # a copy: what a block writes stays its own
+    shutil.copytree(folder, work, symlinks=True)
+    r = subprocess.run([sys.executable, "-c", source], cwd=work, env=_env(), capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, f"{page} block {index} failed:\n{source}\n--- stderr:\n{r.stderr[-3000:]}"
 
 
