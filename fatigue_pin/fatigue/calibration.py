@@ -31,8 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import t as student_t
 
 from fatigue_pin.fatigue.endurance import endurance_time, intermittent_et_closed_form, sustained_et_closed_form
 from fatigue_pin.core.errors import CalibrationDataError
@@ -354,6 +352,9 @@ def calibrate(data: EnduranceData, settings: CalibrationSettings | None = None, 
             "3cc-r model with sustained tasks only: r acts during rests and cannot be fitted; expected rows with "
             "duty_cycle < 1 (or use --model 3cc)"
         )
+    from scipy.optimize import least_squares  # here, not at import: scipy.optimize and .stats take 1.4 s, and every
+    from scipy.stats import t as student_t      # command line builds its parser from this module's settings
+
     kw = dict(settings=settings)
     x0 = _start(names, data, **kw)
     diff_step = 1e-6 if intermittent == "closed-form" and not data.intermittent.any() else 1e-4

@@ -42,13 +42,21 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from fatigue_pin.core.errors import FatiguePinError, OutputLocationError, ParameterError
 from fatigue_pin.core.progress import Progress, as_reporter
 from fatigue_pin.fatigue.interface import FatigueModel
 from fatigue_pin.fatigue.models import XiaFatigue
 from fatigue_pin.core.text import shown
+
+
+def _solve_ivp(*args, **kwargs):
+    """``scipy.integrate.solve_ivp``, imported at the first call: scipy.integrate takes 0.8 s to
+    import, and every command line reads this module (through the calibration's settings)."""
+    from scipy.integrate import solve_ivp
+
+    return solve_ivp(*args, **kwargs)
+
 
 __all__ = [
     "FREY_LAW_AVIN_2010",
@@ -250,7 +258,7 @@ def endurance_time(
         opts["jac"] = J_on
     y = model.rest_state().astype(float)
     if d == 1.0:
-        out = solve_ivp(f_on, (0.0, float(t_max)), y, **opts)
+        out = _solve_ivp(f_on, (0.0, float(t_max)), y, **opts)
         _check_solve(out, model, TL)
         return float(out.t_events[0][0]) if out.t_events[0].size else math.inf
 
@@ -301,7 +309,7 @@ class _Cycle:
                 report.line(f"  TL = {TL:g}: cycle {len(margins)} of at most {max_cycles} (t = {t0:g} s), "
                             f"margin ma + mr - TL = {margins[-1]:.4g}")
             t_on_end = min(t0 + self.d * T, t_max)
-            out = solve_ivp(self.f_on, (t0, t_on_end), y, **self.opts)
+            out = _solve_ivp(self.f_on, (t0, t_on_end), y, **self.opts)
             _check_solve(out, self.model, TL)
             if out.t_events[0].size:
                 return float(out.t_events[0][0])
@@ -321,7 +329,7 @@ def _rest(f_off, off_opts: dict, y: np.ndarray, t_a: float, t_b: float, ia: int,
     the exact solution; when the integrator's round-off takes it below 0, it is set to 0 (a change
     below ``atol``), where it stays exactly. Without this, Xia's 3CC-r switch ``R' = r R while
     ma >= TL`` would flicker between ``r R`` and ``R`` with the sign of the round-off."""
-    out = solve_ivp(f_off, (t_a, t_b), y, **off_opts)
+    out = _solve_ivp(f_off, (t_a, t_b), y, **off_opts)
     _check_solve(out, model, 0.0)
     if not out.t_events[0].size or out.t_events[0][0] >= t_b:
         return out.y[:, -1].copy()
@@ -331,7 +339,7 @@ def _rest(f_off, off_opts: dict, y: np.ndarray, t_a: float, t_b: float, ia: int,
     y[ia] = 0.0
     t_a = float(out.t_events[0][0])
     opts = {k: v for k, v in off_opts.items() if k != "events"}
-    out = solve_ivp(f_off, (t_a, t_b), y, **opts)
+    out = _solve_ivp(f_off, (t_a, t_b), y, **opts)
     _check_solve(out, model, 0.0)
     return out.y[:, -1].copy()
 
