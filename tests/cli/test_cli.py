@@ -58,9 +58,6 @@ def test_the_parser_imports_no_solver_library():
     """Every command line builds the whole parser (``--help`` too), which reads every sub-command's
     settings: that must not import scipy's optimisers, statistics or integrators (1.4 s and 0.8 s
     of a 2-3 s ``--help`` before), which only a calibration or an integration needs."""
-    import subprocess
-    import sys
-
     code = ("import sys\nfrom fatigue_pin.cli.main import build_parser\nbuild_parser()\n"
             "print(sorted(m for m in ('scipy.optimize', 'scipy.stats', 'scipy.integrate') if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
