@@ -20,7 +20,7 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
     """``build(path)`` run once per test session, however many xdist workers ask: the first to ask
     builds ``path`` in the folder all workers' temporary folders share, under a lock; the others
     wait on the lock (an event, not a delay) and reuse what it built. For results several tests
-    read (a solved study, the documentation site) that cost tens of seconds to build. Returns
+    read (a solved study, the docs pages' prepared folder) that cost tens of seconds to build. Returns
     ``path``; a build that raised is tried again by the next worker to ask."""
     import fcntl
     import os
@@ -37,7 +37,7 @@ def built_once(tmp_path_factory, name: str, build) -> Path:
         if not done.exists():
             if path.is_dir() and not path.is_symlink():  # what a build that raised left
                 shutil.rmtree(path)
-            elif path.exists():
+            elif path.exists() or path.is_symlink():
                 path.unlink()
             build(path)
             done.touch()

@@ -55,9 +55,8 @@ class NumericMuscles:
         # the constant geometry, once: each muscle's points (frame, location) and, per wrap it
         # uses, (frame, the cylinder's orientation and centre on its link, radius, turn)
         self._points = [[(p.frame, np.asarray(p.location, dtype=float)) for p in m.points] for m in muscles.muscles]
-        by_name = {w.name: w for w in muscles.wraps}
-        self._uses = [[(by_name[u.name].frame, by_name[u.name].matrix(), np.asarray(by_name[u.name].translation, dtype=float),
-                        by_name[u.name].radius, u.turn) for u in m.wraps] for m in muscles.muscles]
+        wraps = {w.name: (w.frame, w.matrix(), np.asarray(w.translation, dtype=float), w.radius) for w in muscles.wraps}
+        self._uses = [[(*wraps[u.name], u.turn) for u in m.wraps] for m in muscles.muscles]
 
     def lengths(self, q: np.ndarray) -> np.ndarray:
         """Path length of every muscle (m), (nm,), at joint positions ``q`` (nq,): the run's

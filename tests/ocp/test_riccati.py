@@ -234,10 +234,11 @@ def test_analyses_kept_by_pattern_solve_each_matrix():
         np.testing.assert_allclose(K @ x, b, atol=1e-8 * np.abs(K).max() * np.abs(x).max())
 
 
-def test_a_cycle_of_ten_patterns_is_analysed_once(patterns=10):
+def test_a_cycle_of_ten_patterns_is_analysed_once():
     """A closed loop re-planning every 0.1 s on arm26 hands IPOPT ten patterns in turn (the targets
     fall on other nodes of each window): the library keeps them all, so the second cycle's solves
     make no analysis of their own (with four patterns kept, as before, every solve analysed)."""
+    patterns = 10
     lib = ctypes.CDLL(str(riccati_library()))
     lib.riccati_analyses_made.restype = ctypes.c_long
     rng = np.random.default_rng(11)
